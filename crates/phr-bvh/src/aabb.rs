@@ -1,0 +1,135 @@
+//! Axis-aligned bounding boxes and the slab test.
+
+use crate::ray::Ray;
+use glam::Vec3;
+
+/// An axis-aligned box. The empty box has `min = +inf`, `max = -inf`, so that growing it by
+/// any point or box gives exactly that point or box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
+pub struct Aabb {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Default for Aabb {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+/// `1 + 2γ₃`: the relative slack of the robust slab test (see [`Aabb::intersect`]).
+pub const ROBUST_SLAB: f32 = 1.0 + 2.0 * 3.0 * f32::EPSILON;
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
+
+    pub fn new(min: Vec3, max: Vec3) -> Self {
+        Self { min, max }
+    }
+
+    pub fn from_points(points: &[Vec3]) -> Self {
+        points.iter().fold(Self::EMPTY, |b, &p| b.grown(p))
+    }
+
+    #[inline]
+    pub fn grown(self, p: Vec3) -> Self {
+        Self { min: self.min.min(p), max: self.max.max(p) }
+    }
+
+    #[inline]
+    pub fn union(self, o: Aabb) -> Self {
+        Self { min: self.min.min(o.min), max: self.max.max(o.max) }
+    }
+
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.min.x > self.max.x || self.min.y > self.max.y || self.min.z > self.max.z
+    }
+
+    #[inline]
+    pub fn extent(&self) -> Vec3 {
+        self.max - self.min
+    }
+
+    #[inline]
+    pub fn center(&self) -> Vec3 {
+        0.5 * (self.min + self.max)
+    }
+
+    /// Surface area; 0 for the empty box, so empty children cost nothing in the SAH.
+    #[inline]
+    pub fn surface_area(&self) -> f32 {
+        if self.is_empty() {
+            return 0.0;
+        }
+        let e = self.extent();
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+    }
+
+    /// True if `o` lies inside `self` (inclusive); the empty box is inside everything.
+    pub fn contains(&self, o: &Aabb) -> bool {
+        o.is_empty() || (self.min.cmple(o.min).all() && self.max.cmpge(o.max).all())
+    }
+
+    /// Slab test with the ray's precomputed inverse direction (Kay & Kajiya; Williams et al.
+    /// 2005). Returns the entry distance if the box is hit within `[ray.tmin, ray.tmax]`,
+    /// otherwise `f32::INFINITY`. `min`/`max` are chosen so that the NaN from `0 * inf`
+    /// (a ray in a slab's plane) is ignored rather than poisoning the interval.
+    ///
+    /// The exit distance, clipped to `ray.tmax`, is enlarged by `1 + 2γ₃` (Ize 2013, "Robust
+    /// BVH Ray Traversal"), so that rounding never makes a ray miss a box that it touches, nor
+    /// prune a box whose entry distance rounds to just beyond a hit found elsewhere: without
+    /// it, rays grazing flat boxes (axis-aligned triangles) lose hits.
+    #[inline(always)]
+    pub fn intersect(&self, ray: &Ray) -> f32 {
+        let t0 = (self.min - ray.origin) * ray.inv_dir;
+        let t1 = (self.max - ray.origin) * ray.inv_dir;
+        let tnear = t0.min(t1).max_element().max(ray.tmin);
+        let tfar = t0.max(t1).min_element().min(ray.tmax) * ROBUST_SLAB;
+        if tnear <= tfar {
+            tnear
+        } else {
+            f32::INFINITY
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slab_hits_and_misses() {
+        let b = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        let hit = Ray::new(Vec3::new(0.5, 0.5, -1.0), Vec3::Z);
+        assert_eq!(b.intersect(&hit), 1.0);
+        let miss = Ray::new(Vec3::new(1.5, 0.5, -1.0), Vec3::Z);
+        assert_eq!(b.intersect(&miss), f32::INFINITY);
+        let behind = Ray::new(Vec3::new(0.5, 0.5, 2.0), Vec3::Z);
+        assert_eq!(b.intersect(&behind), f32::INFINITY);
+        let inside = Ray::new(Vec3::splat(0.5), Vec3::X);
+        assert_eq!(b.intersect(&inside), 0.0);
+    }
+
+    #[test]
+    fn slab_ray_in_face_plane_and_flat_box() {
+        // Ray parallel to x, lying in the box's min-y plane: counts as a hit (inclusive).
+        let b = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        let r = Ray::new(Vec3::new(-1.0, 0.0, 0.5), Vec3::X);
+        assert_eq!(b.intersect(&r), 1.0);
+        // A flat box (a triangle in the z = 0 plane) is still hit head-on.
+        let flat = Aabb::new(Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 0.0));
+        let r = Ray::new(Vec3::new(0.5, 0.5, -1.0), Vec3::Z);
+        assert_eq!(flat.intersect(&r), 1.0);
+    }
+
+    #[test]
+    fn empty_box_properties() {
+        assert_eq!(Aabb::EMPTY.surface_area(), 0.0);
+        let b = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        assert_eq!(Aabb::EMPTY.union(b), b);
+        assert!(b.contains(&Aabb::EMPTY));
+        assert_eq!(b.surface_area(), 6.0);
+    }
+}

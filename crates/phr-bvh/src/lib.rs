@@ -1,0 +1,36 @@
+//! # phr-bvh: bounding volume hierarchies for ray tracing
+//!
+//! Geometry in, tree out: give the builders one bounding box per primitive, get a [`Bvh`]
+//! (flat node array, see [`node`]); trace rays through it with [`traverse`] and a closure
+//! that intersects your primitives; measure it with [`metrics`]; check it with [`validate`].
+//! Nothing here knows about files, materials or images.
+//!
+//! Builders, each in a module named after its algorithm:
+//! - [`lbvh`]: the linear BVH (Morton codes + radix sort + radix tree), the fast builder and
+//!   the auxiliary tree of PHR.
+//!
+//! Primitive tests for the common cases: [`triangle`] (Möller–Trumbore), [`sphere`].
+
+pub mod aabb;
+pub mod collapse;
+pub mod lbvh;
+pub mod metrics;
+pub mod morton;
+pub mod node;
+mod parallel;
+pub mod radix_sort;
+pub mod ray;
+pub mod refit;
+pub mod sphere;
+pub mod traverse;
+pub mod triangle;
+pub mod validate;
+
+pub use aabb::Aabb;
+pub use lbvh::{build_lbvh, LbvhOptions};
+pub use metrics::{sah_cost, tree_stats, SahConstants, TreeStats};
+pub use node::{Bvh, Node};
+pub use ray::Ray;
+pub use refit::refit;
+pub use traverse::{any_hit, closest_hit, closest_hit_counted, TraversalStats};
+pub use validate::validate;

@@ -1,0 +1,89 @@
+//! Tree metrics: the SAH cost (Goldsmith & Salmon 1987; MacDonald & Booth 1990), depth and
+//! leaf statistics.
+//!
+//! The SAH cost of a tree is the expected cost of a random ray that hits the root box:
+//! `(c_t Σ_interior A(n) + c_i Σ_leaf A(n)·|n|) / A(root)`. The thesis uses `c_t = 2`,
+//! `c_i = 1`; the issue tables also report `c_t = c_i = 1`.
+
+use crate::node::Bvh;
+
+/// The constants of the surface area heuristic.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SahConstants {
+    /// Cost of one traversal step (a node visit).
+    pub traversal: f32,
+    /// Cost of one primitive intersection.
+    pub intersection: f32,
+}
+
+impl SahConstants {
+    /// The thesis's constants (traversal 2, intersection 1).
+    pub const THESIS: SahConstants = SahConstants { traversal: 2.0, intersection: 1.0 };
+    /// Traversal 1, intersection 1.
+    pub const UNIT: SahConstants = SahConstants { traversal: 1.0, intersection: 1.0 };
+}
+
+impl Default for SahConstants {
+    fn default() -> Self {
+        Self::UNIT
+    }
+}
+
+/// SAH cost normalised by the root's surface area (0 for an empty tree).
+pub fn sah_cost(bvh: &Bvh, c: SahConstants) -> f64 {
+    let root_area = bvh.root_bounds().surface_area() as f64;
+    if bvh.nodes.is_empty() || root_area <= 0.0 {
+        return 0.0;
+    }
+    let sum: f64 = bvh
+        .nodes
+        .iter()
+        .map(|n| {
+            let a = n.bounds.surface_area() as f64;
+            if n.is_leaf() {
+                c.intersection as f64 * a * n.count as f64
+            } else {
+                c.traversal as f64 * a
+            }
+        })
+        .sum();
+    sum / root_area
+}
+
+/// Shape statistics of a tree.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TreeStats {
+    pub nodes: usize,
+    pub leaves: usize,
+    pub max_depth: usize,
+    /// Mean depth of the leaves (root = 0).
+    pub mean_leaf_depth: f64,
+    pub max_leaf_size: u32,
+    pub mean_leaf_size: f64,
+}
+
+pub fn tree_stats(bvh: &Bvh) -> TreeStats {
+    let mut s = TreeStats { nodes: bvh.nodes.len(), ..Default::default() };
+    if bvh.nodes.is_empty() {
+        return s;
+    }
+    let mut depth_sum = 0usize;
+    let mut prim_sum = 0usize;
+    let mut stack = vec![(0usize, 0usize)];
+    while let Some((i, d)) = stack.pop() {
+        let n = &bvh.nodes[i];
+        s.max_depth = s.max_depth.max(d);
+        if n.is_leaf() {
+            s.leaves += 1;
+            depth_sum += d;
+            prim_sum += n.count as usize;
+            s.max_leaf_size = s.max_leaf_size.max(n.count);
+        } else {
+            stack.push((n.first as usize, d + 1));
+            stack.push((n.first as usize + 1, d + 1));
+        }
+    }
+    s.mean_leaf_depth = depth_sum as f64 / s.leaves as f64;
+    s.mean_leaf_size = prim_sum as f64 / s.leaves as f64;
+    s
+}

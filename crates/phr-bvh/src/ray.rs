@@ -1,0 +1,39 @@
+//! Rays with a precomputed inverse direction (for the slab test) and a `[tmin, tmax]` interval.
+
+use glam::Vec3;
+
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    /// `1 / dir` per component (±inf for a zero component), computed once per ray.
+    pub inv_dir: Vec3,
+    pub tmin: f32,
+    /// The far end of the interval; closest-hit traversal shrinks it as hits are found.
+    pub tmax: f32,
+}
+
+impl Ray {
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Self::with_interval(origin, dir, 0.0, f32::INFINITY)
+    }
+
+    pub fn with_interval(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Self {
+        Self { origin, dir, inv_dir: safe_recip(dir), tmin, tmax }
+    }
+
+    #[inline]
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + t * self.dir
+    }
+}
+
+/// `1 / d` per component, with zero components replaced by a tiny number of the same sign
+/// first: the slab test then never computes `0 * inf = NaN` for a ray that lies in a slab's
+/// plane, and such a ray counts as inside that slab.
+#[inline]
+pub fn safe_recip(d: Vec3) -> Vec3 {
+    const TINY: f32 = 1.0e-30;
+    let tiny = Vec3::splat(TINY).copysign(d);
+    Vec3::select(d.abs().cmplt(Vec3::splat(TINY)), tiny, d).recip()
+}

@@ -1,0 +1,72 @@
+//! Structural invariants every built tree must satisfy; the tests run this on every tree.
+//!
+//! - every node is reachable from the root exactly once (no cycles, no sharing, no orphans);
+//! - every primitive appears in exactly one leaf;
+//! - every parent's box encloses its children's, every leaf's box encloses its primitives';
+//! - leaves hold between 1 and `max_leaf_size` primitives;
+//! - `parents` (when present) matches the child links.
+
+use crate::aabb::Aabb;
+use crate::node::{Bvh, NO_PARENT};
+
+/// Checks the invariants above; the error says which one failed, and where.
+pub fn validate(bvh: &Bvh, boxes: &[Aabb], max_leaf_size: u32) -> Result<(), String> {
+    if boxes.is_empty() {
+        return if bvh.nodes.is_empty() { Ok(()) } else { Err("nodes without primitives".into()) };
+    }
+    if bvh.nodes.is_empty() {
+        return Err(format!("{} primitives but no nodes", boxes.len()));
+    }
+    if bvh.prim_indices.len() != boxes.len() {
+        return Err(format!("{} primitive references for {} primitives", bvh.prim_indices.len(), boxes.len()));
+    }
+    let mut visited = vec![false; bvh.nodes.len()];
+    let mut prim_seen = vec![false; boxes.len()];
+    let mut stack = vec![0usize];
+    while let Some(i) = stack.pop() {
+        if std::mem::replace(&mut visited[i], true) {
+            return Err(format!("node {i} reached twice"));
+        }
+        let n = &bvh.nodes[i];
+        if n.is_leaf() {
+            if n.count > max_leaf_size {
+                return Err(format!("leaf {i} holds {} > {max_leaf_size} primitives", n.count));
+            }
+            let end = n.first as usize + n.count as usize;
+            let refs = bvh.prim_indices.get(n.first as usize..end).ok_or(format!("leaf {i} range out of bounds"))?;
+            for &p in refs {
+                let seen = prim_seen.get_mut(p as usize).ok_or(format!("leaf {i}: primitive {p} out of range"))?;
+                if std::mem::replace(seen, true) {
+                    return Err(format!("primitive {p} in more than one leaf"));
+                }
+                if !n.bounds.contains(&boxes[p as usize]) {
+                    return Err(format!("leaf {i} does not enclose primitive {p}"));
+                }
+            }
+        } else {
+            let c = n.first as usize;
+            if c + 1 >= bvh.nodes.len() || c <= i {
+                return Err(format!("node {i}: child index {c} invalid"));
+            }
+            for child in [c, c + 1] {
+                if !n.bounds.contains(&bvh.nodes[child].bounds) {
+                    return Err(format!("node {i} does not enclose child {child}"));
+                }
+                if !bvh.parents.is_empty() && bvh.parents[child] != i as u32 {
+                    return Err(format!("parents[{child}] = {} but its parent is {i}", bvh.parents[child]));
+                }
+                stack.push(child);
+            }
+        }
+    }
+    if let Some(i) = visited.iter().position(|v| !v) {
+        return Err(format!("node {i} is unreachable"));
+    }
+    if let Some(p) = prim_seen.iter().position(|s| !s) {
+        return Err(format!("primitive {p} is in no leaf"));
+    }
+    if !bvh.parents.is_empty() && bvh.parents[0] != NO_PARENT {
+        return Err("root has a parent".into());
+    }
+    Ok(())
+}
