@@ -74,8 +74,8 @@ impl Aabb {
 
     /// Slab test with the ray's precomputed inverse direction (Kay & Kajiya; Williams et al.
     /// 2005). Returns the entry distance if the box is hit within `[ray.tmin, ray.tmax]`,
-    /// otherwise `f32::INFINITY`. `min`/`max` are chosen so that the NaN from `0 * inf`
-    /// (a ray in a slab's plane) is ignored rather than poisoning the interval.
+    /// otherwise `f32::INFINITY`. A ray lying in a slab's plane counts as inside that
+    /// slab (see [`crate::ray::safe_recip`]).
     ///
     /// The exit distance, clipped to `ray.tmax`, is enlarged by `1 + 2γ₃` (Ize 2013, "Robust
     /// BVH Ray Traversal"), so that rounding never makes a ray miss a box that it touches, nor
@@ -83,10 +83,30 @@ impl Aabb {
     /// it, rays grazing flat boxes (axis-aligned triangles) lose hits.
     #[inline(always)]
     pub fn intersect(&self, ray: &Ray) -> f32 {
-        let t0 = (self.min - ray.origin) * ray.inv_dir;
-        let t1 = (self.max - ray.origin) * ray.inv_dir;
-        let tnear = t0.min(t1).max_element().max(ray.tmin);
-        let tfar = t0.max(t1).min_element().min(ray.tmax) * ROBUST_SLAB;
+        // Plain comparisons compile to single min/max instructions; NaN cannot occur here
+        // because `Ray` never holds an infinite inverse direction (see `safe_recip`).
+        #[inline(always)]
+        fn min(a: f32, b: f32) -> f32 {
+            if a < b {
+                a
+            } else {
+                b
+            }
+        }
+        #[inline(always)]
+        fn max(a: f32, b: f32) -> f32 {
+            if a > b {
+                a
+            } else {
+                b
+            }
+        }
+        let (o, inv) = (ray.origin, ray.inv_dir);
+        let (tx0, tx1) = ((self.min.x - o.x) * inv.x, (self.max.x - o.x) * inv.x);
+        let (ty0, ty1) = ((self.min.y - o.y) * inv.y, (self.max.y - o.y) * inv.y);
+        let (tz0, tz1) = ((self.min.z - o.z) * inv.z, (self.max.z - o.z) * inv.z);
+        let tnear = max(max(min(tx0, tx1), min(ty0, ty1)), max(min(tz0, tz1), ray.tmin));
+        let tfar = min(min(max(tx0, tx1), max(ty0, ty1)), min(max(tz0, tz1), ray.tmax)) * ROBUST_SLAB;
         if tnear <= tfar {
             tnear
         } else {

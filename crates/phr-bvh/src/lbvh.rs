@@ -5,31 +5,30 @@
 //! 2. A parallel radix sort of (code, primitive) pairs ([`crate::radix_sort`]).
 //! 3. The binary radix tree, top down: a range of sorted codes is split where its highest
 //!    differing bit flips (found by binary search); a run of identical codes is split in the
-//!    middle, by count. Subtrees are built as rayon tasks. A range of `n` primitives always
-//!    owns exactly `2n - 1` nodes, so each task gets its own disjoint slice of the node array
-//!    up front (`split_at_mut`): no allocation, no atomics, no locks, and the layout is the
-//!    same whatever the thread count.
-//! 4. Bounds bottom up, in parallel, with one atomic counter per node ([`crate::refit`]).
-//! 5. If leaves of more than one primitive are asked for, subtrees of at most that many
-//!    primitives are collapsed into leaves ([`crate::collapse`]).
+//!    middle, by count; a range of at most `max_leaf_size` primitives becomes a leaf. The top
+//!    of the tree is expanded sequentially until ranges are small (`PARALLEL_GRAIN`); each
+//!    small range is then built as an independent rayon task into its own vector, and the
+//!    pieces are concatenated in task order. No locks, no atomics, and the same layout
+//!    whatever the thread count.
+//! 4. Bounds bottom up, in parallel, with one atomic counter per node ([`crate::refit`]), the
+//!    routine that also refits the tree when vertices move.
 //!
-//! The result with `max_leaf_size == 1` is the full radix tree (one primitive per leaf), the
+//! With `max_leaf_size == 1` the result is the full radix tree (one primitive per leaf), the
 //! auxiliary hierarchy PHR starts from.
 
 use crate::aabb::Aabb;
-use crate::collapse::collapse_small_subtrees;
 use crate::morton::MortonQuantizer;
 use crate::node::{Bvh, Node, NO_PARENT};
 use crate::radix_sort::radix_sort_pairs;
 use crate::refit::refit;
 use rayon::prelude::*;
 
-/// Ranges smaller than this are built sequentially inside one task.
+/// Ranges of at most this many primitives are built sequentially inside one task.
 const PARALLEL_GRAIN: usize = 1 << 12;
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LbvhOptions {
-    /// Subtrees with at most this many primitives become one leaf (1 = the full radix tree).
+    /// Ranges of at most this many primitives become one leaf (1 = the full radix tree).
     pub max_leaf_size: u32,
 }
 
@@ -41,37 +40,31 @@ impl Default for LbvhOptions {
 
 /// Builds an LBVH over primitives given by their bounding boxes.
 pub fn build_lbvh(boxes: &[Aabb], options: LbvhOptions) -> Bvh {
-    let mut bvh = build_radix_tree(boxes);
+    let mut bvh = build_topology(boxes, options.max_leaf_size.max(1) as usize);
     refit(&mut bvh, boxes);
-    if options.max_leaf_size > 1 {
-        bvh = collapse_small_subtrees(&bvh, options.max_leaf_size);
-    }
     bvh
 }
 
-/// Steps 1–3: the topology of the full radix tree (bounds are left empty).
-pub fn build_radix_tree(boxes: &[Aabb]) -> Bvh {
-    let n = boxes.len();
-    if n == 0 {
+/// Steps 1–3: the tree's topology; bounds are left empty.
+pub fn build_topology(boxes: &[Aabb], max_leaf_size: usize) -> Bvh {
+    if boxes.is_empty() {
         return Bvh::default();
     }
     let pairs = sorted_morton_codes(boxes);
     let codes: Vec<u64> = pairs.par_iter().map(|p| p.0).collect();
     let prim_indices: Vec<u32> = pairs.par_iter().map(|p| p.1).collect();
-
-    let node_count = 2 * n - 1;
-    let mut nodes = vec![Node::default(); node_count];
-    let mut parents = vec![NO_PARENT; node_count];
-    let (root, descendants) = nodes.split_at_mut(1);
-    let (_, descendant_parents) = parents.split_at_mut(1);
-    let task = Subtree { codes: &codes, first: 0, end: n, index: 0 };
-    task.build(&mut root[0], descendants, descendant_parents, 1);
+    drop(pairs);
+    let top = TopOfTree::expand(&codes, max_leaf_size);
+    let pieces: Vec<Piece> =
+        top.tasks.par_iter().map(|t| Piece::build(&codes, t.first, t.end, max_leaf_size)).collect();
+    let (nodes, parents) = top.assemble(pieces);
     Bvh { nodes, prim_indices, parents }
 }
 
 /// Morton codes of the box centres, sorted, paired with their primitive index.
 fn sorted_morton_codes(boxes: &[Aabb]) -> Vec<(u64, u32)> {
-    let centroid_bounds = boxes.par_iter().map(|b| Aabb::EMPTY.grown(b.center())).reduce(|| Aabb::EMPTY, Aabb::union);
+    let centroid_bounds =
+        boxes.par_iter().fold(|| Aabb::EMPTY, |acc, b| acc.grown(b.center())).reduce(|| Aabb::EMPTY, Aabb::union);
     let quantizer = MortonQuantizer::new(&centroid_bounds);
     let mut pairs: Vec<(u64, u32)> =
         boxes.par_iter().enumerate().map(|(i, b)| (quantizer.code(b.center()), i as u32)).collect();
@@ -79,48 +72,127 @@ fn sorted_morton_codes(boxes: &[Aabb]) -> Vec<(u64, u32)> {
     pairs
 }
 
-/// A range `[first, end)` of sorted codes whose node sits at `index`.
-struct Subtree<'a> {
-    codes: &'a [u64],
+/// A range of sorted primitives `[first, end)` whose node already has a slot.
+#[derive(Clone, Copy)]
+struct Range {
     first: usize,
     end: usize,
-    index: u32,
+    node: u32,
 }
 
-impl Subtree<'_> {
-    /// Writes this range's node into `slot`, its children into `descendants[0..2]` (node
-    /// indices `base` and `base + 1`), and their subtrees after them: `2 nl - 2` slots for the
-    /// left one, then the right one's. `parents` is aligned with `descendants`.
-    fn build(&self, slot: &mut Node, descendants: &mut [Node], parents: &mut [u32], base: u32) {
-        let n = self.end - self.first;
-        if n == 1 {
-            *slot = Node::leaf(Aabb::EMPTY, self.first as u32, 1);
-            return;
+/// The sequentially expanded top of the tree, and the small ranges left for tasks.
+struct TopOfTree {
+    nodes: Vec<Node>,
+    parents: Vec<u32>,
+    tasks: Vec<Range>,
+}
+
+impl TopOfTree {
+    fn expand(codes: &[u64], max_leaf_size: usize) -> Self {
+        let mut top = TopOfTree { nodes: vec![Node::default()], parents: vec![NO_PARENT], tasks: Vec::new() };
+        let mut stack = vec![Range { first: 0, end: codes.len(), node: 0 }];
+        while let Some(r) = stack.pop() {
+            let n = r.end - r.first;
+            if n <= max_leaf_size {
+                top.nodes[r.node as usize] = Node::leaf(Aabb::EMPTY, r.first as u32, n as u32);
+            } else if n <= PARALLEL_GRAIN {
+                top.tasks.push(r);
+            } else {
+                let split = find_split(codes, r.first, r.end);
+                let child = top.nodes.len() as u32;
+                top.nodes[r.node as usize] = Node::interior(Aabb::EMPTY, child);
+                top.nodes.extend([Node::default(); 2]);
+                top.parents.extend([r.node; 2]);
+                stack.push(Range { first: split, end: r.end, node: child + 1 });
+                stack.push(Range { first: r.first, end: split, node: child });
+            }
         }
-        let split = find_split(self.codes, self.first, self.end);
-        *slot = Node::interior(Aabb::EMPTY, base);
-        parents[0] = self.index;
-        parents[1] = self.index;
-        let left_len = split - self.first;
-        let (children, rest) = descendants.split_at_mut(2);
-        let (_, rest_parents) = parents.split_at_mut(2);
-        let (left_desc, right_desc) = rest.split_at_mut(2 * left_len - 2);
-        let (left_par, right_par) = rest_parents.split_at_mut(2 * left_len - 2);
-        let (left_slot, right_slot) = children.split_at_mut(1);
-        let left = Subtree { codes: self.codes, first: self.first, end: split, index: base };
-        let right = Subtree { codes: self.codes, first: split, end: self.end, index: base + 1 };
-        let left_base = base + 2;
-        let right_base = left_base + (2 * left_len - 2) as u32;
-        let (left_slot, right_slot) = (&mut left_slot[0], &mut right_slot[0]);
-        if n >= PARALLEL_GRAIN {
-            rayon::join(
-                || left.build(left_slot, left_desc, left_par, left_base),
-                || right.build(right_slot, right_desc, right_par, right_base),
-            );
+        top
+    }
+
+    /// Places every task's piece after the top nodes, in task order, relocating its indices.
+    fn assemble(mut self, pieces: Vec<Piece>) -> (Vec<Node>, Vec<u32>) {
+        let top_len = self.nodes.len();
+        let mut offsets = Vec::with_capacity(pieces.len());
+        let mut total = top_len;
+        for p in &pieces {
+            offsets.push(total);
+            total += p.nodes.len() - 1;
+        }
+        self.nodes.resize(total, Node::default());
+        self.parents.resize(total, NO_PARENT);
+        let (top_nodes, mut rest_nodes) = self.nodes.split_at_mut(top_len);
+        let mut rest_parents = &mut self.parents[top_len..];
+        let mut slots = Vec::with_capacity(pieces.len());
+        for p in &pieces {
+            let (n, tail) = std::mem::take(&mut rest_nodes).split_at_mut(p.nodes.len() - 1);
+            let (q, tail_p) = std::mem::take(&mut rest_parents).split_at_mut(p.nodes.len() - 1);
+            slots.push((n, q));
+            rest_nodes = tail;
+            rest_parents = tail_p;
+        }
+        // Task roots live in the top part; write them first (cheap, sequential).
+        for ((task, piece), &offset) in self.tasks.iter().zip(&pieces).zip(&offsets) {
+            top_nodes[task.node as usize] = piece.relocated(0, task.node, offset);
+        }
+        slots.into_par_iter().zip(pieces.par_iter()).zip(self.tasks.par_iter().zip(offsets.par_iter())).for_each(
+            |(((nodes, parents), piece), (task, &offset))| {
+                for i in 1..piece.nodes.len() {
+                    nodes[i - 1] = piece.relocated(i, task.node, offset);
+                    parents[i - 1] = piece.relocate_index(piece.parents[i], task.node, offset);
+                }
+            },
+        );
+        (self.nodes, self.parents)
+    }
+}
+
+/// A subtree built by one task with local indices: its root at 0, the rest after.
+struct Piece {
+    nodes: Vec<Node>,
+    parents: Vec<u32>,
+}
+
+impl Piece {
+    fn build(codes: &[u64], first: usize, end: usize, max_leaf_size: usize) -> Piece {
+        let capacity = 2 * (end - first).div_ceil(max_leaf_size.max(1)) + 1;
+        let mut piece = Piece { nodes: Vec::with_capacity(capacity), parents: Vec::with_capacity(capacity) };
+        piece.nodes.push(Node::default());
+        piece.parents.push(NO_PARENT);
+        let mut stack = vec![(first, end, 0u32)];
+        while let Some((first, end, node)) = stack.pop() {
+            let n = end - first;
+            if n <= max_leaf_size {
+                piece.nodes[node as usize] = Node::leaf(Aabb::EMPTY, first as u32, n as u32);
+                continue;
+            }
+            let split = find_split(codes, first, end);
+            let child = piece.nodes.len() as u32;
+            piece.nodes[node as usize] = Node::interior(Aabb::EMPTY, child);
+            piece.nodes.extend([Node::default(); 2]);
+            piece.parents.extend([node; 2]);
+            stack.push((split, end, child + 1));
+            stack.push((first, split, child));
+        }
+        piece
+    }
+
+    /// Local index → global: the root is the task's node, the others follow `offset`.
+    #[inline]
+    fn relocate_index(&self, local: u32, root: u32, offset: usize) -> u32 {
+        if local == 0 {
+            root
         } else {
-            left.build(left_slot, left_desc, left_par, left_base);
-            right.build(right_slot, right_desc, right_par, right_base);
+            (offset + local as usize - 1) as u32
         }
+    }
+
+    fn relocated(&self, i: usize, root: u32, offset: usize) -> Node {
+        let mut n = self.nodes[i];
+        if !n.is_leaf() {
+            n.first = self.relocate_index(n.first, root, offset);
+        }
+        n
     }
 }
 

@@ -12,7 +12,7 @@
 //! Primitive tests for the common cases: [`triangle`] (Möller–Trumbore), [`sphere`].
 
 pub mod aabb;
-pub mod collapse;
+pub mod builder;
 pub mod lbvh;
 pub mod metrics;
 pub mod morton;
@@ -27,6 +27,7 @@ pub mod triangle;
 pub mod validate;
 
 pub use aabb::Aabb;
+pub use builder::Builder;
 pub use lbvh::{build_lbvh, LbvhOptions};
 pub use metrics::{sah_cost, tree_stats, SahConstants, TreeStats};
 pub use node::{Bvh, Node};

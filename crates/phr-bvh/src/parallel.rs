@@ -28,14 +28,14 @@ impl<'a, T> UnsafeSlice<'a, T> {
         self.ptr.add(i).write(value);
     }
 
+    /// A raw pointer to element `i`, for field-level access.
+    ///
     /// # Safety
-    /// No other thread may write index `i` concurrently.
+    /// The caller must not create overlapping references through it; every read or write of
+    /// a field must be exclusive of concurrent writes to that field.
     #[inline(always)]
-    pub(crate) unsafe fn read(&self, i: usize) -> T
-    where
-        T: Copy,
-    {
+    pub(crate) unsafe fn ptr(&self, i: usize) -> *mut T {
         assert!(i < self.len);
-        self.ptr.add(i).read()
+        self.ptr.add(i)
     }
 }

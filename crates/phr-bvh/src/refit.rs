@@ -3,16 +3,19 @@
 //!
 //! One task per leaf computes the leaf's box and climbs towards the root. At each parent it
 //! increments the parent's counter: the first child to arrive stops, the second (which then
-//! knows both children are final) writes the union and climbs on. Every node is thus written
-//! exactly once, by exactly one thread, with no lock. The LBVH builder uses it for its
+//! knows both children are final) writes the union and climbs on. Every node's box is thus
+//! written exactly once, by exactly one thread, with no lock. The LBVH builder uses it for its
 //! initial bounds, and dynamic scenes use it every frame after vertices move: the topology
 //! stays, only the boxes change.
 
 use crate::aabb::Aabb;
-use crate::node::{Bvh, NO_PARENT};
+use crate::node::{Bvh, Node, NO_PARENT};
 use crate::parallel::UnsafeSlice;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
+
+/// Leaves handed to one rayon task at a time.
+const LEAF_CHUNK: usize = 1024;
 
 /// Recomputes every node's bounds from the primitives' current `boxes`.
 pub fn refit(bvh: &mut Bvh, boxes: &[Aabb]) {
@@ -22,36 +25,38 @@ pub fn refit(bvh: &mut Bvh, boxes: &[Aabb]) {
     if bvh.parents.len() != bvh.nodes.len() {
         bvh.compute_parents();
     }
-    let leaves: Vec<u32> =
-        bvh.nodes.par_iter().enumerate().filter(|(_, n)| n.is_leaf()).map(|(i, _)| i as u32).collect();
-    let mut bounds = vec![Aabb::EMPTY; bvh.nodes.len()];
-    let arrivals: Vec<AtomicU32> = (0..bvh.nodes.len()).map(|_| AtomicU32::new(0)).collect();
-    {
-        let out = UnsafeSlice::new(&mut bounds);
-        let (nodes, parents, prims) = (&bvh.nodes, &bvh.parents, &bvh.prim_indices);
-        leaves.par_iter().for_each(|&leaf| {
-            let node = &nodes[leaf as usize];
-            let prim_range = node.first as usize..(node.first + node.count) as usize;
-            let leaf_box = prims[prim_range].iter().fold(Aabb::EMPTY, |b, &p| b.union(boxes[p as usize]));
-            // SAFETY: leaf `leaf` is written only by this task.
-            unsafe { out.write(leaf as usize, leaf_box) };
-            let mut parent = parents[leaf as usize];
-            while parent != NO_PARENT {
-                // AcqRel: the second arrival sees the first arrival's write of its child.
-                if arrivals[parent as usize].fetch_add(1, Ordering::AcqRel) == 0 {
-                    return;
-                }
-                let first = nodes[parent as usize].first as usize;
-                // SAFETY: both children are final (each was written before its task's
-                // fetch_add on this counter), and only the second arrival, this task,
-                // writes `parent`.
-                unsafe {
-                    let union = out.read(first).union(out.read(first + 1));
-                    out.write(parent as usize, union);
-                }
-                parent = parents[parent as usize];
+    let node_count = bvh.nodes.len();
+    let arrivals: Vec<AtomicU32> = std::iter::repeat_with(|| AtomicU32::new(0)).take(node_count).collect();
+    let (parents, prims) = (&bvh.parents, &bvh.prim_indices);
+    let nodes = UnsafeSlice::new(&mut bvh.nodes);
+    (0..node_count).into_par_iter().with_min_len(LEAF_CHUNK).for_each(|i| {
+        // SAFETY: topology fields (`first`, `count`) are never written during the refit, so
+        // reading them races with nothing; bounds are written by exactly one task per node
+        // (argued at each write below).
+        let node: *mut Node = unsafe { nodes.ptr(i) };
+        let (first, count) = unsafe { ((*node).first as usize, (*node).count as usize) };
+        if count == 0 {
+            return;
+        }
+        let leaf_box = prims[first..first + count].iter().fold(Aabb::EMPTY, |b, &p| b.union(boxes[p as usize]));
+        // SAFETY: leaf `i` is visited by this task only.
+        unsafe { (&raw mut (*node).bounds).write(leaf_box) };
+        let mut parent = parents[i];
+        while parent != NO_PARENT {
+            // AcqRel: the second arrival sees the first arrival's write of its child's box.
+            if arrivals[parent as usize].fetch_add(1, Ordering::AcqRel) == 0 {
+                return;
             }
-        });
-    }
-    bvh.nodes.par_iter_mut().zip(bounds.par_iter()).for_each(|(n, b)| n.bounds = *b);
+            // SAFETY: both children's boxes are final (each was written before its task's
+            // fetch_add on this counter), and only the second arrival, this task, writes the
+            // parent's box.
+            unsafe {
+                let p = nodes.ptr(parent as usize);
+                let c = (*p).first as usize;
+                let union = (*nodes.ptr(c)).bounds.union((*nodes.ptr(c + 1)).bounds);
+                (&raw mut (*p).bounds).write(union);
+            }
+            parent = parents[parent as usize];
+        }
+    });
 }

@@ -21,7 +21,7 @@ impl Sphere {
         Aabb::new(self.center - r, self.center + r)
     }
 
-    /// The nearest `t` in `(ray.tmin, ray.tmax)`, if any.
+    /// The nearest `t` in `(ray.tmin, ray.tmax]`, if any.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<f32> {
         let r = self.radius.abs();
@@ -38,7 +38,7 @@ impl Sphere {
         let q = b + b.signum() * sq;
         let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (q / a, (f.length_squared() - r * r) / q) };
         let (near, far) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
-        [near, far].into_iter().find(|&t| t > ray.tmin && t < ray.tmax)
+        [near, far].into_iter().find(|&t| t > ray.tmin && t <= ray.tmax)
     }
 
     /// Outward normal at a surface point (inward for a negative radius).

@@ -32,7 +32,8 @@ pub struct TriangleHit {
     pub v: f32,
 }
 
-/// Möller–Trumbore. Returns a hit with `ray.tmin < t < ray.tmax`, both faces counted.
+/// Möller–Trumbore. Returns a hit with `ray.tmin < t <= ray.tmax` (inclusive at the far end,
+/// so a caller can break ties between hits at equal distance), both faces counted.
 /// Degenerate (zero-area) triangles have a zero determinant and are never hit.
 #[inline(always)]
 pub fn intersect_triangle(ray: &Ray, v0: Vec3, v1: Vec3, v2: Vec3) -> Option<TriangleHit> {
@@ -56,7 +57,7 @@ pub fn intersect_triangle(ray: &Ray, v0: Vec3, v1: Vec3, v2: Vec3) -> Option<Tri
         return None;
     }
     let t = e2.dot(q) * inv_det;
-    if t > ray.tmin && t < ray.tmax {
+    if t > ray.tmin && t <= ray.tmax {
         Some(TriangleHit { t, u, v })
     } else {
         None

@@ -58,10 +58,9 @@ pub fn bvh_hit(bvh: &Bvh, tris: &[[Vec3; 3]], ray: &Ray) -> Option<(f32, u32)> {
     let mut best: Option<(f32, u32)> = None;
     closest_hit(bvh, &mut r, |p, r| {
         let t = &tris[p as usize];
-        // Accept equal t too so that the lowest index wins ties whatever the visit order.
-        let mut probe = *r;
-        probe.tmax = f32::INFINITY;
-        match intersect_triangle(&probe, t[0], t[1], t[2]) {
+        // Hits at exactly tmax are reported too, so the lowest index wins ties whatever the
+        // visit order.
+        match intersect_triangle(r, t[0], t[1], t[2]) {
             Some(h) if h.t < r.tmax || (h.t == r.tmax && best.is_some_and(|(_, bp)| p < bp)) => {
                 r.tmax = h.t;
                 best = Some((h.t, p));
