@@ -1,0 +1,365 @@
+//! glTF 2.0 reader (`.gltf` with embedded or external buffers, and `.glb`), via the `gltf` crate.
+//!
+//! Walks the node hierarchy of the default scene (or the first scene), applies each node's
+//! world transform to the positions of its mesh's `TRIANGLES` primitives, and groups triangles
+//! by material (one group per glTF material, named after it or `material_N`; primitives without
+//! a material go to `default`). Perspective cameras are returned with their world placement.
+//!
+//! Limits: other primitive modes (points, lines, strips, fans) and orthographic cameras are
+//! skipped; sparse accessors, morph targets and skins are not supported; textures are not read.
+
+use super::{check_finite, finish, GltfMaterial, Location, MeshData, SourceCamera, SourceMaterial};
+use crate::error::LoadError;
+use ::gltf::accessor::{DataType, Dimensions};
+use ::gltf::camera::Projection;
+use ::gltf::mesh::Mode;
+use ::gltf::{Accessor, Document, Node, Primitive};
+use glam::{Mat4, Vec3};
+use std::collections::HashMap;
+use std::path::Path;
+
+/// Deeper node hierarchies are taken for cycles (which glTF forbids).
+const MAX_DEPTH: usize = 256;
+
+/// Parses a glTF or GLB file held in memory; external buffers are read from `base_dir`.
+pub(super) fn parse(path: &Path, base_dir: &Path, bytes: &[u8]) -> Result<MeshData, LoadError> {
+    let invalid = |message: String| LoadError::new(path, format!("invalid glTF: {message}"));
+    let (document, blob) = read_document(bytes).map_err(invalid)?;
+    let buffers = ::gltf::import_buffers(&document, Some(base_dir), blob).map_err(|e| invalid(e.to_string()))?;
+    let buffers: Vec<&[u8]> = buffers.iter().map(|data| &data.0[..]).collect();
+    let scene = (document.default_scene().or_else(|| document.scenes().next()))
+        .ok_or_else(|| LoadError::new(path, "glTF file has no scene"))?;
+    let mut builder = Builder { path, buffers: &buffers, mesh: MeshData::default(), groups: HashMap::new() };
+    for node in scene.nodes() {
+        builder.node(&node, Mat4::IDENTITY, 0)?;
+    }
+    finish(path, builder.mesh)
+}
+
+/// Parses and validates the JSON (and the GLB chunks), refusing first what would make the
+/// `gltf` crate panic. Returns the document and the GLB's binary chunk.
+fn read_document(bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>), String> {
+    check_glb_length(bytes)?;
+    let ::gltf::Gltf { document, blob } =
+        ::gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| e.to_string())?;
+    let json = document.into_json();
+    check_position_accessors(&json)?;
+    let document = Document::from_json(json).map_err(|e| e.to_string())?;
+    Ok((document, blob))
+}
+
+/// The `gltf` crate subtracts the header size from a GLB's declared length unchecked (an
+/// overflow panic in debug builds), so a too-small length is refused here first.
+fn check_glb_length(bytes: &[u8]) -> Result<(), String> {
+    let length = bytes.get(8..12).filter(|_| bytes.starts_with(b"glTF")).and_then(|b| b.try_into().ok());
+    match length.map(u32::from_le_bytes) {
+        Some(length) if length < 12 => Err(format!("GLB length {length} is shorter than its header")),
+        _ => Ok(()),
+    }
+}
+
+/// The `gltf` crate's own validation indexes the accessor list with each primitive's
+/// `POSITION` accessor unchecked (gltf-json 1.4), so out-of-range ones are caught here first.
+fn check_position_accessors(json: &::gltf::json::Root) -> Result<(), String> {
+    let semantic = ::gltf::json::validation::Checked::Valid(::gltf::Semantic::Positions);
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let index = primitive.attributes.get(&semantic).map(|index| index.value());
+            if index.is_some_and(|index| index >= json.accessors.len()) {
+                return Err(format!("mesh {m}, primitive {p}: POSITION accessor out of range"));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Collects the triangles and cameras of a scene.
+struct Builder<'a> {
+    path: &'a Path,
+    buffers: &'a [&'a [u8]],
+    mesh: MeshData,
+    /// Group index by glTF material index (`None`: no material).
+    groups: HashMap<Option<usize>, u32>,
+}
+
+impl Builder<'_> {
+    fn error(&self, message: impl Into<String>) -> LoadError {
+        LoadError::new(self.path, message)
+    }
+
+    fn node(&mut self, node: &Node, parent: Mat4, depth: usize) -> Result<(), LoadError> {
+        if depth > MAX_DEPTH {
+            return Err(self.error("node hierarchy too deep (or cyclic)"));
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        if let Some(mesh) = node.mesh() {
+            let mesh_name = mesh.name().map_or_else(|| format!("mesh {}", mesh.index()), |n| format!("mesh `{n}`"));
+            for primitive in mesh.primitives().filter(|p| p.mode() == Mode::Triangles) {
+                let context = format!("{mesh_name}, primitive {}", primitive.index());
+                self.primitive(&primitive, world, &context)?;
+            }
+        }
+        if let Some(camera) = node.camera() {
+            self.camera(&camera, world)?;
+        }
+        for child in node.children() {
+            self.node(&child, world, depth + 1)?;
+        }
+        Ok(())
+    }
+
+    fn primitive(&mut self, primitive: &Primitive, world: Mat4, context: &str) -> Result<(), LoadError> {
+        let positions = (primitive.get(&::gltf::Semantic::Positions))
+            .ok_or_else(|| self.error(format!("{context}: no POSITION attribute")))?;
+        self.check_accessor(&positions, context, &[DataType::F32], Dimensions::Vec3)?;
+        if let Some(indices) = primitive.indices() {
+            self.check_accessor(&indices, context, &[DataType::U8, DataType::U16, DataType::U32], Dimensions::Scalar)?;
+        }
+        let buffers = self.buffers;
+        let reader = primitive.reader(|buffer| buffers.get(buffer.index()).copied());
+        let base = self.mesh.positions.len();
+        let Some(points) = reader.read_positions() else {
+            return Err(self.error(format!("{context}: cannot read positions")));
+        };
+        for point in points {
+            let p = world.transform_point3(Vec3::from(point));
+            check_finite(self.path, p, Location::Vertex(self.mesh.positions.len()))?;
+            self.mesh.positions.push(p);
+        }
+        let count = self.mesh.positions.len() - base;
+        let indices: Vec<u32> = match reader.read_indices() {
+            Some(indices) => indices.into_u32().collect(),
+            None => (0..count as u32).collect(),
+        };
+        self.triangles(&indices, base, count, context)?;
+        let group = self.group(primitive.material());
+        let triangles = self.mesh.triangles.len();
+        self.mesh.triangle_group.resize(triangles, group);
+        Ok(())
+    }
+
+    /// Appends the triangles of one primitive, whose `count` vertices start at `base`.
+    fn triangles(&mut self, indices: &[u32], base: usize, count: usize, context: &str) -> Result<(), LoadError> {
+        let corners = indices.chunks_exact(3);
+        if !corners.remainder().is_empty() {
+            return Err(self.error(format!("{context}: {} indices, not a multiple of 3", indices.len())));
+        }
+        if base + count > u32::MAX as usize {
+            return Err(self.error("too many vertices"));
+        }
+        if let Some(bad) = indices.iter().find(|&&i| i as usize >= count) {
+            return Err(self.error(format!("{context}: index {bad} out of range ({count} vertices)")));
+        }
+        let base = base as u32;
+        self.mesh.triangles.extend(corners.map(|c| [base + c[0], base + c[1], base + c[2]]));
+        Ok(())
+    }
+
+    /// Checks what the `gltf` crate's reader assumes, so that reading cannot panic: element
+    /// type, a buffer view inside its buffer, and every element inside the view.
+    fn check_accessor(
+        &self,
+        accessor: &Accessor,
+        context: &str,
+        types: &[DataType],
+        dimensions: Dimensions,
+    ) -> Result<(), LoadError> {
+        let fail = |what: &str| self.error(format!("{context}: accessor {} {what}", accessor.index()));
+        if accessor.sparse().is_some() {
+            return Err(fail("is sparse (not supported)"));
+        }
+        if !types.contains(&accessor.data_type()) || accessor.dimensions() != dimensions {
+            return Err(fail("has the wrong element type"));
+        }
+        let view = accessor.view().ok_or_else(|| fail("has no buffer view"))?;
+        let buffer_len = self.buffers.get(view.buffer().index()).map_or(0, |b| b.len());
+        if !matches!(view.offset().checked_add(view.length()), Some(end) if end <= buffer_len) {
+            return Err(fail("has a buffer view outside its buffer"));
+        }
+        let size = accessor.size();
+        let stride = view.stride().unwrap_or(size);
+        let end = (accessor.count().checked_sub(1))
+            .and_then(|last| stride.checked_mul(last))
+            .and_then(|last| last.checked_add(accessor.offset()))
+            .and_then(|last| last.checked_add(size));
+        if stride < size || !matches!(end, Some(end) if end <= view.length()) {
+            return Err(fail("is empty or reads outside its buffer view"));
+        }
+        Ok(())
+    }
+
+    /// The group of a material, created at first use.
+    fn group(&mut self, material: ::gltf::Material) -> u32 {
+        let next = self.mesh.groups.len() as u32;
+        let group = *self.groups.entry(material.index()).or_insert(next);
+        if group == next {
+            let (name, source) = match material.index() {
+                None => ("default".to_owned(), SourceMaterial::None),
+                Some(i) => {
+                    let name = material.name().map_or_else(|| format!("material_{i}"), str::to_owned);
+                    (name, SourceMaterial::Gltf(convert_material(&material)))
+                }
+            };
+            self.mesh.groups.push(name);
+            self.mesh.group_materials.push(source);
+        }
+        group
+    }
+
+    fn camera(&mut self, camera: &::gltf::Camera, world: Mat4) -> Result<(), LoadError> {
+        let Projection::Perspective(perspective) = camera.projection() else {
+            return Ok(());
+        };
+        let name = camera.name().map_or_else(|| format!("camera_{}", camera.index()), str::to_owned);
+        let position = world.transform_point3(Vec3::ZERO);
+        let forward = world.transform_vector3(Vec3::NEG_Z).try_normalize();
+        let up = world.transform_vector3(Vec3::Y).try_normalize();
+        let (Some(forward), Some(up)) = (forward, up) else {
+            return Err(self.error(format!("camera `{name}` has a degenerate transform")));
+        };
+        self.mesh.cameras.push(SourceCamera {
+            name,
+            position,
+            look_at: position + forward,
+            up,
+            vfov_degrees: perspective.yfov().to_degrees(),
+        });
+        Ok(())
+    }
+}
+
+fn convert_material(material: &::gltf::Material) -> GltfMaterial {
+    let pbr = material.pbr_metallic_roughness();
+    let [r, g, b, _] = pbr.base_color_factor();
+    let strength = material.emissive_strength().unwrap_or(1.0);
+    GltfMaterial {
+        base_color: [r, g, b],
+        metallic: pbr.metallic_factor(),
+        roughness: pbr.roughness_factor(),
+        emissive: material.emissive_factor().map(|e| e * strength),
+        transmission: material.transmission().map_or(0.0, |t| t.transmission_factor()),
+        ior: material.ior().unwrap_or(1.5),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Standard base64 with padding, enough for a data URI.
+    fn base64(bytes: &[u8]) -> String {
+        const ALPHABET: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+        let mut out = String::new();
+        for chunk in bytes.chunks(3) {
+            let word = chunk.iter().enumerate().fold(0u32, |w, (i, &b)| w | u32::from(b) << (16 - 8 * i));
+            for i in 0..4 {
+                let sextet = (word >> (18 - 6 * i)) & 63;
+                out.push(if i <= chunk.len() { ALPHABET[sextet as usize] as char } else { '=' });
+            }
+        }
+        out
+    }
+
+    /// One triangle under two nested translated nodes, a material, a rotated camera.
+    pub(crate) fn triangle_gltf(index: u32) -> String {
+        let mut buffer = Vec::new();
+        for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+            buffer.extend_from_slice(&v.to_le_bytes());
+        }
+        for i in [0u16, 1, index as u16, 0] {
+            buffer.extend_from_slice(&i.to_le_bytes());
+        }
+        let uri = format!("data:application/octet-stream;base64,{}", base64(&buffer));
+        let half = std::f32::consts::FRAC_1_SQRT_2;
+        format!(
+            r#"{{
+  "asset": {{"version": "2.0"}},
+  "extensionsUsed": ["KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior"],
+  "scene": 0,
+  "scenes": [{{"nodes": [0, 2]}}],
+  "nodes": [
+    {{"translation": [1, 0, 0], "children": [1]}},
+    {{"translation": [0, 2, 3], "mesh": 0}},
+    {{"translation": [0, 0, 5], "rotation": [0, {half}, 0, {half}], "camera": 0}}
+  ],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1, "material": 0}}]}}],
+  "materials": [{{
+    "name": "glow",
+    "pbrMetallicRoughness": {{"baseColorFactor": [0.5, 0.25, 0.125, 1], "metallicFactor": 0.75, "roughnessFactor": 0.5}},
+    "emissiveFactor": [1, 0.5, 0.25],
+    "extensions": {{
+      "KHR_materials_emissive_strength": {{"emissiveStrength": 4}},
+      "KHR_materials_transmission": {{"transmissionFactor": 0.5}},
+      "KHR_materials_ior": {{"ior": 1.33}}
+    }}
+  }}],
+  "cameras": [{{"type": "perspective", "perspective": {{"yfov": 0.5, "znear": 0.1}}}}],
+  "buffers": [{{"byteLength": {len}, "uri": "{uri}"}}],
+  "bufferViews": [
+    {{"buffer": 0, "byteOffset": 0, "byteLength": 36}},
+    {{"buffer": 0, "byteOffset": 36, "byteLength": 6}}
+  ],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}},
+    {{"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}}
+  ]
+}}"#,
+            len = buffer.len()
+        )
+    }
+
+    fn parse_str(text: &str) -> Result<MeshData, LoadError> {
+        parse(Path::new("test.gltf"), Path::new("/nonexistent"), text.as_bytes())
+    }
+
+    #[test]
+    fn base64_matches_known_values() {
+        assert_eq!(base64(b"Man"), "TWFu");
+        assert_eq!(base64(b"Ma"), "TWE=");
+        assert_eq!(base64(b"M"), "TQ==");
+    }
+
+    #[test]
+    fn triangle_transform_material_and_camera() {
+        let mesh = parse_str(&triangle_gltf(2)).unwrap();
+        let expected: Vec<Vec3> = [[1., 2., 3.], [2., 2., 3.], [1., 3., 3.]].map(Vec3::from).into();
+        assert_eq!(mesh.positions, expected);
+        assert_eq!(mesh.triangles, vec![[0, 1, 2]]);
+        assert_eq!(mesh.triangle_group, vec![0]);
+        assert_eq!(mesh.groups, vec!["glow"]);
+        let SourceMaterial::Gltf(material) = &mesh.group_materials[0] else { panic!("not a glTF material") };
+        assert_eq!(material.base_color, [0.5, 0.25, 0.125]);
+        assert_eq!((material.metallic, material.roughness), (0.75, 0.5));
+        assert_eq!(material.emissive, [4.0, 2.0, 1.0]);
+        assert_eq!((material.transmission, material.ior), (0.5, 1.33));
+        let [camera] = &mesh.cameras[..] else { panic!("expected one camera") };
+        assert_eq!(camera.name, "camera_0");
+        assert!(camera.position.abs_diff_eq(Vec3::new(0.0, 0.0, 5.0), 1e-6));
+        assert!(camera.look_at.abs_diff_eq(Vec3::new(-1.0, 0.0, 5.0), 1e-6), "{}", camera.look_at);
+        assert!(camera.up.abs_diff_eq(Vec3::Y, 1e-6));
+        assert!((camera.vfov_degrees - 0.5f32.to_degrees()).abs() < 1e-4);
+    }
+
+    #[test]
+    fn bad_inputs_are_errors() {
+        let out_of_range = parse_str(&triangle_gltf(3)).unwrap_err().to_string();
+        assert!(out_of_range.contains("index 3 out of range (3 vertices)"), "{out_of_range}");
+        let bad_view =
+            triangle_gltf(2).replace(r#""byteOffset": 36, "byteLength": 6"#, r#""byteOffset": 40, "byteLength": 6"#);
+        let message = parse_str(&bad_view).unwrap_err().to_string();
+        assert!(message.contains("outside its buffer"), "{message}");
+        let huge_count =
+            triangle_gltf(2).replace(r#""count": 3, "type": "SCALAR""#, r#""count": 4000000000, "type": "SCALAR""#);
+        assert!(parse_str(&huge_count).is_err());
+        assert!(parse_str("{").unwrap_err().to_string().starts_with("test.gltf: invalid glTF"));
+        assert!(parse_str("").is_err());
+        let bad_position = triangle_gltf(2).replace(r#""POSITION": 0"#, r#""POSITION": 9"#);
+        let message = parse_str(&bad_position).unwrap_err().to_string();
+        assert!(message.contains("POSITION accessor out of range"), "{message}");
+        let short_glb = [b"glTF".as_slice(), &2u32.to_le_bytes(), &4u32.to_le_bytes()].concat();
+        let message = parse(Path::new("t.glb"), Path::new(""), &short_glb).unwrap_err().to_string();
+        assert!(message.contains("shorter than its header"), "{message}");
+        let no_mesh = triangle_gltf(2).replace(r#""nodes": [0, 2]"#, r#""nodes": [2]"#);
+        assert_eq!(parse_str(&no_mesh).unwrap_err().to_string(), "test.gltf: no triangles");
+    }
+}
