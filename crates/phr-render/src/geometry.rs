@@ -1,0 +1,158 @@
+//! The renderable geometry: every triangle and sphere of a scene in one primitive array, the
+//! BVH over it, and the closest-hit query the integrator calls.
+//!
+//! Primitives `0..triangles.len()` are triangles, the rest spheres. Closest-hit ties (two
+//! primitives at exactly the same distance, as at a shared edge) go to the lower primitive
+//! index, so the hit, and hence the image, does not depend on the tree's visit order: every
+//! builder gives the same image for the same seed.
+
+use crate::scene::{Scene, SphereObject};
+use glam::Vec3;
+use phr_bvh::triangle::{intersect_triangle, triangle_normal};
+use phr_bvh::{closest_hit, closest_hit_counted, Aabb, Bvh, Ray, TraversalStats};
+
+/// A closest hit: distance, primitive, and barycentrics for triangles.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    pub prim: u32,
+    pub u: f32,
+    pub v: f32,
+}
+
+/// What shading needs to know about a hit point.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint {
+    pub position: Vec3,
+    /// Unit geometric normal (outward for spheres, `(v1-v0)×(v2-v0)` for triangles).
+    pub normal: Vec3,
+    /// The ray arrived on the side the normal points to.
+    pub front: bool,
+    pub material: u32,
+    /// How far to move a secondary ray's origin off the surface, along the normal.
+    pub offset: f32,
+}
+
+pub struct Geometry {
+    pub triangles: Vec<[Vec3; 3]>,
+    pub triangle_material: Vec<u32>,
+    pub spheres: Vec<SphereObject>,
+    pub boxes: Vec<Aabb>,
+    pub bvh: Bvh,
+}
+
+/// Secondary-ray offsets, relative to `1 + max|p|` (see `shared/reference/README.md`): a few
+/// hundred float32 ulps for triangles, whose hit points come from barycentrics and are
+/// accurate; Mitsuba's `2⁻²⁴ · 1500` for spheres, whose `o + t d` points are less so.
+const TRIANGLE_OFFSET: f32 = 1.0e-6;
+const SPHERE_OFFSET: f32 = 1500.0 / (1u32 << 24) as f32;
+
+impl Geometry {
+    /// Flattens the scene's meshes and spheres. The BVH is empty until [`Geometry::build`].
+    pub fn new(scene: &Scene) -> Self {
+        let n = scene.triangle_count();
+        let mut triangles = Vec::with_capacity(n);
+        let mut triangle_material = Vec::with_capacity(n);
+        for mesh in &scene.meshes {
+            for (t, &m) in mesh.triangles.iter().zip(&mesh.triangle_material) {
+                triangles.push(t.map(|i| mesh.positions[i as usize]));
+                triangle_material.push(m);
+            }
+        }
+        let mut g = Self {
+            triangles,
+            triangle_material,
+            spheres: scene.spheres.clone(),
+            boxes: Vec::new(),
+            bvh: Bvh::default(),
+        };
+        g.update_boxes();
+        g
+    }
+
+    pub fn prim_count(&self) -> usize {
+        self.triangles.len() + self.spheres.len()
+    }
+
+    /// Recomputes the primitive boxes (after vertices moved).
+    pub fn update_boxes(&mut self) {
+        use rayon::prelude::*;
+        let mut boxes: Vec<Aabb> = self.triangles.par_iter().map(|t| Aabb::from_points(t)).collect();
+        boxes.extend(self.spheres.iter().map(|s| s.sphere.bounds()));
+        self.boxes = boxes;
+    }
+
+    /// Builds the BVH with `build` (any of phr-bvh's builders) over the current boxes.
+    pub fn build(&mut self, build: impl FnOnce(&[Aabb]) -> Bvh) {
+        self.bvh = build(&self.boxes);
+    }
+
+    #[inline(always)]
+    fn test_prim(&self, prim: u32, ray: &mut Ray, best: &mut Option<Hit>) -> bool {
+        // The primitive tests report hits at exactly `ray.tmax` too, for the tie rule.
+        let probe = &*ray;
+        let hit = if (prim as usize) < self.triangles.len() {
+            let [a, b, c] = self.triangles[prim as usize];
+            intersect_triangle(probe, a, b, c).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v })
+        } else {
+            let s = &self.spheres[prim as usize - self.triangles.len()].sphere;
+            s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0 })
+        };
+        match hit {
+            Some(h) if h.t < ray.tmax || best.is_none_or(|b| h.prim < b.prim) => {
+                ray.tmax = h.t;
+                *best = Some(h);
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// The closest hit along `ray` within its interval.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut r = *ray;
+        let mut best = None;
+        closest_hit(&self.bvh, &mut r, |p, r| self.test_prim(p, r, &mut best));
+        best
+    }
+
+    /// [`Geometry::intersect`], also counting traversal steps.
+    pub fn intersect_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> Option<Hit> {
+        let mut r = *ray;
+        let mut best = None;
+        closest_hit_counted(&self.bvh, &mut r, |p, r| self.test_prim(p, r, &mut best), stats);
+        best
+    }
+
+    /// Position, normal and side of a hit.
+    pub fn surface_point(&self, ray: &Ray, hit: &Hit) -> SurfacePoint {
+        let n_tris = self.triangles.len();
+        let (position, normal, material, rel) = if (hit.prim as usize) < n_tris {
+            let [a, b, c] = self.triangles[hit.prim as usize];
+            let p = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
+            let n = triangle_normal(a, b, c).normalize_or(Vec3::Z);
+            (p, n, self.triangle_material[hit.prim as usize], TRIANGLE_OFFSET)
+        } else {
+            let s = &self.spheres[hit.prim as usize - n_tris];
+            let c = s.sphere.center;
+            let r = s.sphere.radius.abs();
+            // Re-project onto the sphere: o + t d is off by the error of t.
+            let p = ray.at(hit.t);
+            let p = c + (p - c) * (r / (p - c).length());
+            (p, s.sphere.normal(p).normalize_or(Vec3::Y), s.material, SPHERE_OFFSET)
+        };
+        let front = ray.dir.dot(normal) < 0.0;
+        let offset = rel * (1.0 + position.abs().max_element());
+        SurfacePoint { position, normal, front, material, offset }
+    }
+}
+
+impl SurfacePoint {
+    /// Origin for a ray leaving towards `dir`: moved off the surface on the side it leaves to.
+    #[inline]
+    pub fn spawn_origin(&self, dir: Vec3) -> Vec3 {
+        let side = if dir.dot(self.normal) >= 0.0 { self.normal } else { -self.normal };
+        self.position + self.offset * side
+    }
+}

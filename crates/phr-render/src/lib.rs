@@ -1,0 +1,21 @@
+//! # phr-render: a path tracer on top of phr-bvh
+//!
+//! The data path, one module per step: scene file ([`scene::json`]) or mesh file ([`load`])
+//! → [`scene::Scene`] → triangles and spheres with a BVH ([`geometry`]) → camera rays
+//! ([`camera`]) → hits → shading ([`material`], [`integrator`]) → [`film`] → image files
+//! ([`output`]). [`render`] runs the progressive, multi-threaded loop.
+
+pub mod camera;
+pub mod error;
+pub mod film;
+pub mod geometry;
+pub mod integrator;
+pub mod load;
+pub mod material;
+pub mod output;
+pub mod render;
+pub mod sampler;
+pub mod scene;
+
+pub use error::LoadError;
+pub use scene::Scene;

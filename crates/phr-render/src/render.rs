@@ -1,0 +1,87 @@
+//! The progressive, multi-threaded render loop: one sample per pixel per frame, accumulated
+//! by the caller's [`crate::film::Film`].
+//!
+//! A frame is cut into 16×16 tiles rendered as rayon tasks (tiles keep neighbouring rays,
+//! which visit the same nodes, on one core). Each pixel's random numbers depend only on
+//! (seed, frame, pixel) ([`Pcg32::for_pixel`]), so the image is the same for any thread count.
+
+use crate::camera::Camera;
+use crate::geometry::Geometry;
+use crate::integrator::PathTracer;
+use crate::sampler::Pcg32;
+use glam::Vec3;
+use phr_bvh::TraversalStats;
+use rayon::prelude::*;
+
+const TILE: u32 = 16;
+
+pub struct Renderer<'a> {
+    pub tracer: PathTracer<'a>,
+    pub camera: Camera,
+    pub width: u32,
+    pub height: u32,
+    pub seed: u64,
+}
+
+/// Work done in one frame.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FrameStats {
+    /// Rays traced (camera rays and bounces).
+    pub rays: u64,
+}
+
+impl Renderer<'_> {
+    fn tiles(&self) -> Vec<(u32, u32)> {
+        let (tx, ty) = (self.width.div_ceil(TILE), self.height.div_ceil(TILE));
+        (0..ty).flat_map(|y| (0..tx).map(move |x| (x * TILE, y * TILE))).collect()
+    }
+
+    /// Renders frame number `frame` (1 sample per pixel); pixels row-major from the top left.
+    pub fn render_frame(&self, frame: u32) -> (Vec<Vec3>, FrameStats) {
+        let tiles: Vec<(Vec<Vec3>, u64)> = self
+            .tiles()
+            .into_par_iter()
+            .map(|(x0, y0)| {
+                let mut out = Vec::with_capacity((TILE * TILE) as usize);
+                let mut rays = 0u64;
+                for y in y0..(y0 + TILE).min(self.height) {
+                    for x in x0..(x0 + TILE).min(self.width) {
+                        let mut rng = Pcg32::for_pixel(self.seed, frame, y * self.width + x);
+                        let (jx, jy) = (rng.next_f32(), rng.next_f32());
+                        let ray = self.camera.ray(x as f32 + jx, y as f32 + jy);
+                        let sample = self.tracer.trace(ray, &mut rng);
+                        out.push(sample.radiance);
+                        rays += sample.rays as u64;
+                    }
+                }
+                (out, rays)
+            })
+            .collect();
+        let mut image = vec![Vec3::ZERO; (self.width * self.height) as usize];
+        let mut stats = FrameStats::default();
+        for ((x0, y0), (pixels, rays)) in self.tiles().into_iter().zip(tiles) {
+            let tile_w = (x0 + TILE).min(self.width) - x0;
+            for (i, p) in pixels.into_iter().enumerate() {
+                let (x, y) = (x0 + i as u32 % tile_w, y0 + i as u32 / tile_w);
+                image[(y * self.width + x) as usize] = p;
+            }
+            stats.rays += rays;
+        }
+        (image, stats)
+    }
+
+    /// Traversal work of the camera ray through each pixel's centre (thesis Figure 5.3).
+    pub fn primary_ray_stats(&self) -> Vec<TraversalStats> {
+        let geometry: &Geometry = self.tracer.geometry;
+        (0..self.width * self.height)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = (i % self.width, i / self.width);
+                let ray = self.camera.ray(x as f32 + 0.5, y as f32 + 0.5);
+                let mut stats = TraversalStats::default();
+                geometry.intersect_counted(&ray, &mut stats);
+                stats
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,520 @@
+//! The scene file: JSON, the format of `shared/reference/README.md` (so the reference scenes
+//! load as they are), extended with named views, glTF objects and a choice of MTL mapping.
+//!
+//! Top level: `width`, `height` (or `resolution`), `spp`, `max_depth`, `camera`, `views`
+//! (`{"name": camera, ...}`, in file order, after `camera` which is called `default`),
+//! `background` (a colour, `{"type": "constant", "color"}` or `{"type": "gradient", "bottom",
+//! "top"}`), `materials` (`{"name": material}`), `objects` (a list). Object types: `sphere`,
+//! `quad`, `triangle`, `triangles`, `mesh` (one material for a whole OBJ/PLY/glTF file),
+//! `obj_mtl` (an OBJ with its MTL, optional per-name overrides and `"mtl_mapping": "reference"
+//! | "full"`, see [`super::materials`]), `gltf` (a glTF file with its own materials and
+//! cameras). File paths may start with `{scenes}`, the shared scenes folder (see
+//! [`scenes_dir`]); other relative paths are relative to the scene file. `docs/scene-format.md`
+//! documents every key.
+
+use super::materials::{map_source_material, MtlMapping};
+use super::{Background, Mesh, RenderSettings, Scene, SphereObject};
+use crate::camera::CameraDesc;
+use crate::error::LoadError;
+use crate::load::{load_mesh, MeshData};
+use crate::material::Material;
+use glam::{Mat4, Quat, Vec3};
+use indexmap::IndexMap;
+use phr_bvh::sphere::Sphere;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// A number meaning the same value three times, or three numbers.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(untagged)]
+enum Color {
+    Scalar(f32),
+    Rgb([f32; 3]),
+}
+
+impl From<Color> for Vec3 {
+    fn from(c: Color) -> Vec3 {
+        match c {
+            Color::Scalar(s) => Vec3::splat(s),
+            Color::Rgb(v) => Vec3::from(v),
+        }
+    }
+}
+
+#[derive(Deserialize)]
+struct SceneFile {
+    width: Option<u32>,
+    height: Option<u32>,
+    resolution: Option<[u32; 2]>,
+    spp: Option<u32>,
+    max_depth: Option<u32>,
+    camera: Option<CameraFile>,
+    #[serde(default)]
+    views: IndexMap<String, CameraFile>,
+    background: Option<BackgroundFile>,
+    #[serde(default)]
+    materials: IndexMap<String, MaterialFile>,
+    objects: Vec<ObjectFile>,
+}
+
+#[derive(Deserialize)]
+struct CameraFile {
+    #[serde(alias = "lookfrom")]
+    position: [f32; 3],
+    #[serde(alias = "lookat")]
+    look_at: [f32; 3],
+    #[serde(alias = "vup", default = "default_up")]
+    up: [f32; 3],
+    #[serde(default = "default_vfov")]
+    vfov: f32,
+}
+
+fn default_up() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+fn default_vfov() -> f32 {
+    90.0
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum BackgroundFile {
+    Color(Color),
+    Typed(TypedBackground),
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+enum TypedBackground {
+    Constant { color: Color },
+    Gradient { bottom: Color, top: Color },
+}
+
+#[derive(Clone, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+enum MaterialFile {
+    #[serde(alias = "diffuse")]
+    Lambertian { albedo: Color },
+    Metal {
+        albedo: Color,
+        #[serde(default)]
+        fuzz: f32,
+        #[serde(default)]
+        fuzz_in_sphere: bool,
+    },
+    Dielectric {
+        #[serde(alias = "refraction_index", alias = "ir")]
+        ior: f32,
+    },
+    #[serde(alias = "diffuse_light", alias = "light")]
+    Emissive {
+        emit: Color,
+        #[serde(default)]
+        two_sided: bool,
+    },
+}
+
+impl From<&MaterialFile> for Material {
+    fn from(m: &MaterialFile) -> Material {
+        match *m {
+            MaterialFile::Lambertian { albedo } => Material::Lambertian { albedo: albedo.into() },
+            MaterialFile::Metal { albedo, fuzz, fuzz_in_sphere } => {
+                Material::Metal { albedo: albedo.into(), fuzz: fuzz.clamp(0.0, 1.0), fuzz_in_sphere }
+            }
+            MaterialFile::Dielectric { ior } => Material::Dielectric { ior },
+            MaterialFile::Emissive { emit, two_sided } => Material::Emissive { emit: emit.into(), two_sided },
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+enum ObjectFile {
+    Sphere {
+        center: [f32; 3],
+        radius: f32,
+        material: String,
+    },
+    Quad {
+        #[serde(rename = "Q")]
+        q: [f32; 3],
+        u: [f32; 3],
+        v: [f32; 3],
+        material: String,
+        transform: Option<TransformFile>,
+    },
+    Triangle {
+        v0: [f32; 3],
+        v1: [f32; 3],
+        v2: [f32; 3],
+        material: String,
+        transform: Option<TransformFile>,
+    },
+    Triangles {
+        vertices: Vec<[f32; 3]>,
+        faces: Vec<[u32; 3]>,
+        material: String,
+        transform: Option<TransformFile>,
+    },
+    Mesh {
+        file: String,
+        material: String,
+        transform: Option<TransformFile>,
+        #[serde(default)]
+        #[allow(dead_code)]
+        smooth_normals: bool,
+    },
+    ObjMtl {
+        file: String,
+        #[serde(default)]
+        materials: IndexMap<String, MaterialFile>,
+        material: Option<String>,
+        transform: Option<TransformFile>,
+        #[serde(default)]
+        mtl_mapping: MtlMappingFile,
+    },
+    Gltf {
+        file: String,
+        transform: Option<TransformFile>,
+    },
+}
+
+#[derive(Clone, Copy, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum MtlMappingFile {
+    #[default]
+    Reference,
+    Full,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum TransformFile {
+    Matrix { matrix: [[f32; 4]; 4] },
+    Srt(SrtFile),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SrtFile {
+    scale: Option<Color>,
+    rotate: Option<Rotations>,
+    translate: Option<[f32; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum Rotations {
+    One([f32; 4]),
+    Many(Vec<[f32; 4]>),
+}
+
+impl TransformFile {
+    /// Scale first, then the rotations in list order, then the translation.
+    fn matrix(&self) -> Mat4 {
+        match self {
+            TransformFile::Matrix { matrix } => Mat4::from_cols_array_2d(matrix).transpose(),
+            TransformFile::Srt(srt) => {
+                let mut m = Mat4::from_scale(srt.scale.map_or(Vec3::ONE, Vec3::from));
+                let rotations = match &srt.rotate {
+                    None => Vec::new(),
+                    Some(Rotations::One(r)) => vec![*r],
+                    Some(Rotations::Many(rs)) => rs.clone(),
+                };
+                for [x, y, z, degrees] in rotations {
+                    let axis = Vec3::new(x, y, z).normalize_or(Vec3::Y);
+                    m = Mat4::from_quat(Quat::from_axis_angle(axis, degrees.to_radians())) * m;
+                }
+                Mat4::from_translation(Vec3::from(srt.translate.unwrap_or([0.0; 3]))) * m
+            }
+        }
+    }
+}
+
+/// Reads a scene file.
+pub fn load_scene_file(path: &Path) -> Result<Scene, LoadError> {
+    let text = std::fs::read_to_string(path).map_err(|e| LoadError::new(path, format!("cannot read: {e}")))?;
+    parse_scene(&text, path)
+}
+
+/// Parses scene JSON; `path` names the file in errors and anchors relative paths.
+pub fn parse_scene(text: &str, path: &Path) -> Result<Scene, LoadError> {
+    let file: SceneFile = serde_json::from_str(text).map_err(|e| {
+        let message = e.to_string();
+        let message = message.split(" at line ").next().unwrap_or(&message).to_string();
+        LoadError::at_line(path, e.line(), message)
+    })?;
+    SceneBuilder { path, scene: Scene::default() }.build(file)
+}
+
+struct SceneBuilder<'a> {
+    path: &'a Path,
+    scene: Scene,
+}
+
+impl SceneBuilder<'_> {
+    fn err(&self, message: impl Into<String>) -> LoadError {
+        LoadError::new(self.path, message)
+    }
+
+    fn build(mut self, file: SceneFile) -> Result<Scene, LoadError> {
+        let [w, h] = file.resolution.unwrap_or([file.width.unwrap_or(256), file.height.unwrap_or(256)]);
+        if w == 0 || h == 0 {
+            return Err(self.err(format!("image size {w}x{h} is empty")));
+        }
+        let defaults = RenderSettings::default();
+        self.scene.settings = RenderSettings {
+            width: w,
+            height: h,
+            spp: file.spp.unwrap_or(64).max(1),
+            max_depth: file.max_depth.unwrap_or(50).max(1),
+        };
+        let _ = defaults;
+        self.scene.background = match file.background {
+            None => Background::Constant(Vec3::ZERO),
+            Some(BackgroundFile::Color(c)) => Background::Constant(c.into()),
+            Some(BackgroundFile::Typed(TypedBackground::Constant { color })) => Background::Constant(color.into()),
+            Some(BackgroundFile::Typed(TypedBackground::Gradient { bottom, top })) => {
+                Background::Gradient { bottom: bottom.into(), top: top.into() }
+            }
+        };
+        for (name, m) in &file.materials {
+            self.scene.add_material(name.clone(), m.into());
+        }
+        if let Some(c) = &file.camera {
+            self.scene.views.push(("default".into(), camera_desc(c)));
+        }
+        for (name, c) in &file.views {
+            self.scene.views.push((name.clone(), camera_desc(c)));
+        }
+        for (i, object) in file.objects.iter().enumerate() {
+            self.add_object(i, object)?;
+        }
+        if self.scene.meshes.is_empty() && self.scene.spheres.is_empty() {
+            return Err(self.err("the scene has no objects"));
+        }
+        if self.scene.views.is_empty() {
+            let auto = self.scene.framing_camera();
+            self.scene.views.push(("auto".into(), auto));
+        }
+        Ok(self.scene)
+    }
+
+    fn material(&self, object: usize, name: &str) -> Result<u32, LoadError> {
+        self.scene.material_index(name).ok_or_else(|| {
+            let known = self.scene.material_names.join(", ");
+            self.err(format!("object {object}: unknown material \"{name}\" (known: {known})"))
+        })
+    }
+
+    fn add_object(&mut self, i: usize, object: &ObjectFile) -> Result<(), LoadError> {
+        match object {
+            ObjectFile::Sphere { center, radius, material } => {
+                let material = self.material(i, material)?;
+                if !radius.is_finite() || *radius == 0.0 || !Vec3::from(*center).is_finite() {
+                    return Err(self.err(format!("object {i}: sphere needs a finite centre and non-zero radius")));
+                }
+                self.scene
+                    .spheres
+                    .push(SphereObject { sphere: Sphere { center: (*center).into(), radius: *radius }, material });
+            }
+            ObjectFile::Quad { q, u, v, material, transform } => {
+                let (q, u, v) = (Vec3::from(*q), Vec3::from(*u), Vec3::from(*v));
+                let positions = vec![q, q + u, q + v, q + u + v];
+                let triangles = vec![[0, 1, 2], [1, 3, 2]];
+                self.add_inline(i, "quad", positions, triangles, material, transform)?;
+            }
+            ObjectFile::Triangle { v0, v1, v2, material, transform } => {
+                let positions = vec![(*v0).into(), (*v1).into(), (*v2).into()];
+                self.add_inline(i, "triangle", positions, vec![[0, 1, 2]], material, transform)?;
+            }
+            ObjectFile::Triangles { vertices, faces, material, transform } => {
+                let positions = vertices.iter().map(|&v| v.into()).collect();
+                self.add_inline(i, "triangles", positions, faces.clone(), material, transform)?;
+            }
+            ObjectFile::Mesh { file, material, transform, .. } => {
+                let material = self.material(i, material)?;
+                let data = self.load(file, transform)?;
+                let n = data.triangles.len();
+                self.push_mesh(file, data.positions, data.triangles, vec![material; n]);
+            }
+            ObjectFile::ObjMtl { file, materials, material, transform, mtl_mapping } => {
+                let fallback = material.as_deref().map(|m| self.material(i, m)).transpose()?;
+                let mapping = match mtl_mapping {
+                    MtlMappingFile::Reference => MtlMapping::Reference,
+                    MtlMappingFile::Full => MtlMapping::Full,
+                };
+                let data = self.load(file, transform)?;
+                let group_material: Vec<u32> = (0..data.groups.len())
+                    .map(|g| {
+                        let name = &data.groups[g];
+                        if let Some(m) = materials.get(name) {
+                            self.scene.add_material(name.clone(), m.into())
+                        } else if let Some(f) = fallback {
+                            f
+                        } else {
+                            self.scene
+                                .add_material(name.clone(), map_source_material(&data.group_materials[g], mapping))
+                        }
+                    })
+                    .collect();
+                self.push_grouped(file, data, &group_material);
+            }
+            ObjectFile::Gltf { file, transform } => {
+                let data = self.load(file, transform)?;
+                let group_material: Vec<u32> = (0..data.groups.len())
+                    .map(|g| {
+                        let m = map_source_material(&data.group_materials[g], MtlMapping::Full);
+                        self.scene.add_material(data.groups[g].clone(), m)
+                    })
+                    .collect();
+                for c in &data.cameras {
+                    let desc =
+                        CameraDesc { position: c.position, look_at: c.look_at, up: c.up, vfov_degrees: c.vfov_degrees };
+                    self.scene.views.push((c.name.clone(), desc));
+                }
+                self.push_grouped(file, data, &group_material);
+            }
+        }
+        Ok(())
+    }
+
+    fn add_inline(
+        &mut self,
+        i: usize,
+        kind: &str,
+        positions: Vec<Vec3>,
+        triangles: Vec<[u32; 3]>,
+        material: &str,
+        transform: &Option<TransformFile>,
+    ) -> Result<(), LoadError> {
+        let material = self.material(i, material)?;
+        if let Some(bad) = triangles.iter().flatten().find(|&&k| k as usize >= positions.len()) {
+            return Err(self.err(format!("object {i} ({kind}): vertex index {bad} out of range")));
+        }
+        if positions.iter().any(|p| !p.is_finite()) {
+            return Err(self.err(format!("object {i} ({kind}): coordinate is not finite")));
+        }
+        let m = transform.as_ref().map_or(Mat4::IDENTITY, TransformFile::matrix);
+        let positions = positions.into_iter().map(|p| m.transform_point3(p)).collect();
+        let n = triangles.len();
+        self.push_mesh(kind, positions, triangles, vec![material; n]);
+        Ok(())
+    }
+
+    fn load(&self, file: &str, transform: &Option<TransformFile>) -> Result<MeshData, LoadError> {
+        let path = resolve_path(file, self.path)?;
+        let mut data = load_mesh(&path)?;
+        if let Some(t) = transform {
+            let m = t.matrix();
+            data.positions.iter_mut().for_each(|p| *p = m.transform_point3(*p));
+        }
+        Ok(data)
+    }
+
+    fn push_grouped(&mut self, name: &str, data: MeshData, group_material: &[u32]) {
+        let materials = data.triangle_group.iter().map(|&g| group_material[g as usize]).collect();
+        self.push_mesh(name, data.positions, data.triangles, materials);
+    }
+
+    fn push_mesh(&mut self, name: &str, positions: Vec<Vec3>, triangles: Vec<[u32; 3]>, triangle_material: Vec<u32>) {
+        self.scene.meshes.push(Mesh { name: name.to_string(), positions, triangles, triangle_material });
+    }
+}
+
+fn camera_desc(c: &CameraFile) -> CameraDesc {
+    CameraDesc { position: c.position.into(), look_at: c.look_at.into(), up: c.up.into(), vfov_degrees: c.vfov }
+}
+
+/// Resolves a `file` entry: `{scenes}/...` against [`scenes_dir`], relative paths against the
+/// scene file's folder.
+pub fn resolve_path(file: &str, scene_file: &Path) -> Result<PathBuf, LoadError> {
+    if let Some(rest) = file.strip_prefix("{scenes}") {
+        let dir = scenes_dir(scene_file).ok_or_else(|| {
+            LoadError::new(scene_file, format!("cannot resolve {{scenes}} in \"{file}\": set PHR_SCENES_DIR"))
+        })?;
+        return Ok(dir.join(rest.trim_start_matches(['/', '\\'])));
+    }
+    let p = Path::new(file);
+    Ok(if p.is_absolute() { p.to_path_buf() } else { scene_file.parent().unwrap_or(Path::new(".")).join(p) })
+}
+
+/// The shared scenes folder that `{scenes}` stands for: `$PHR_SCENES_DIR`, else
+/// `$REFERENCE_SCENES_DIR`, else the `scenes/` next to a `reference/` folder above the scene
+/// file (the layout of `shared/`), else a `shared/scenes` above the scene file, the current
+/// directory or the running executable (the project's checkout sits next to `shared/`).
+pub fn scenes_dir(scene_file: &Path) -> Option<PathBuf> {
+    for var in ["PHR_SCENES_DIR", "REFERENCE_SCENES_DIR"] {
+        if let Some(dir) = std::env::var_os(var) {
+            return Some(PathBuf::from(dir));
+        }
+    }
+    let absolute = std::path::absolute(scene_file).ok()?;
+    let cwd = std::env::current_dir().ok();
+    let exe = std::env::current_exe().ok();
+    let starts = absolute.parent().into_iter().chain(cwd.as_deref()).chain(exe.as_deref());
+    for start in starts {
+        for dir in start.ancestors() {
+            if dir.join("reference").is_dir() && dir.join("scenes").is_dir() {
+                return Some(dir.join("scenes"));
+            }
+            if dir.join("shared/scenes").is_dir() {
+                return Some(dir.join("shared/scenes"));
+            }
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Scene, LoadError> {
+        parse_scene(text, Path::new("/nonexistent/test.json"))
+    }
+
+    #[test]
+    fn reference_style_scene() {
+        let s = parse(
+            r#"{"width": 64, "height": 32, "spp": 8, "max_depth": 5,
+                "background": {"type": "gradient", "bottom": [1, 1, 1], "top": [0.5, 0.7, 1.0]},
+                "camera": {"position": [0, 0, 3], "look_at": [0, 0, 0], "vfov": 40},
+                "views": {"side": {"lookfrom": [3, 0, 0], "lookat": [0, 0, 0]}},
+                "materials": {"w": {"type": "diffuse", "albedo": 0.5}, "l": {"type": "light", "emit": [4, 4, 4]}},
+                "objects": [
+                  {"type": "sphere", "center": [0, 0, 0], "radius": -1, "material": "w"},
+                  {"type": "quad", "Q": [0, 0, 0], "u": [1, 0, 0], "v": [0, 1, 0], "material": "l",
+                   "transform": {"scale": 2, "rotate": [0, 1, 0, 90], "translate": [0, 0, 1]}}]}"#,
+        )
+        .unwrap();
+        assert_eq!(s.settings, RenderSettings { width: 64, height: 32, spp: 8, max_depth: 5 });
+        assert_eq!(s.view_names(), vec!["default", "side"]);
+        assert_eq!(s.spheres.len(), 1);
+        assert_eq!(s.triangle_count(), 2);
+        assert_eq!(s.materials[0], Material::Lambertian { albedo: Vec3::splat(0.5) });
+        // Scale 2, then 90° about y maps +x to -z, then translate z by 1.
+        let p = s.meshes[0].positions[1];
+        assert!((p - Vec3::new(0.0, 0.0, -1.0)).length() < 1e-5, "{p}");
+        let n = (s.meshes[0].positions[1] - s.meshes[0].positions[0])
+            .cross(s.meshes[0].positions[2] - s.meshes[0].positions[0]);
+        assert!(n.x > 0.0, "the quad's normal u × v turned from +z to +x: {n}");
+    }
+
+    #[test]
+    fn errors_name_the_problem() {
+        let e = parse(r#"{"objects": [{"type": "sphere", "center": [0,0,0], "radius": 1, "material": "nope"}]}"#)
+            .unwrap_err();
+        assert!(e.to_string().contains("unknown material \"nope\""), "{e}");
+        let e = parse("{\n\"materials\": {\"a\": {\"type\": \"plastic\"}},\n\"objects\": []}").unwrap_err();
+        assert_eq!(e.line, Some(2), "{e}");
+        assert!(e.to_string().contains("plastic"), "{e}");
+        let e = parse(r#"{"objects": []}"#).unwrap_err();
+        assert!(e.to_string().contains("no objects"));
+        let e = parse(r#"{"materials": {"w": {"type": "diffuse", "albedo": 0.5}}, "objects": [{"type": "triangles", "vertices": [[0,0,0]], "faces": [[0,1,2]], "material": "w"}]}"#).unwrap_err();
+        assert!(e.to_string().contains("out of range"), "{e}");
+        let e = parse(r#"{"materials": {"w": {"type": "diffuse", "albedo": 0.5}}, "objects": [{"type": "mesh", "file": "missing.ply", "material": "w"}]}"#).unwrap_err();
+        assert!(e.to_string().contains("missing.ply"), "{e}");
+    }
+}

@@ -1,0 +1,192 @@
+//! The scene model: what gets rendered, independent of the file it came from.
+//!
+//! A scene is triangle meshes and spheres, each triangle and sphere with one of the scene's
+//! materials, a background (the sky), named camera views, and the render settings its file
+//! asks for. Loaders (`crate::load`) and the scene file (`json`) fill it in; the built-in
+//! default scene (`builtin`) makes one in code.
+
+pub mod builtin;
+pub mod json;
+pub mod materials;
+
+use crate::camera::CameraDesc;
+use crate::material::Material;
+use glam::Vec3;
+use phr_bvh::sphere::Sphere;
+
+/// Radiance of rays that leave the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Background {
+    Constant(Vec3),
+    /// RTIOW's sky: `(1 - a)·bottom + a·top` with `a = 0.5 (d.y + 1)` for the unit direction `d`.
+    Gradient {
+        bottom: Vec3,
+        top: Vec3,
+    },
+}
+
+impl Background {
+    #[inline]
+    pub fn radiance(&self, unit_dir: Vec3) -> Vec3 {
+        match self {
+            Background::Constant(c) => *c,
+            Background::Gradient { bottom, top } => {
+                let a = 0.5 * (unit_dir.y + 1.0);
+                (1.0 - a) * *bottom + a * *top
+            }
+        }
+    }
+}
+
+/// A triangle mesh with one material index per triangle.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    pub name: String,
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    pub triangle_material: Vec<u32>,
+}
+
+/// A sphere and its material.
+#[derive(Clone, Debug)]
+pub struct SphereObject {
+    pub sphere: Sphere,
+    pub material: u32,
+}
+
+/// Render settings a scene file may carry; the command line overrides them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    /// Maximum number of ray segments per path, camera ray included (RTIOW's `max_depth`).
+    pub max_depth: u32,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self { width: 512, height: 512, spp: 64, max_depth: 8 }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub materials: Vec<Material>,
+    pub material_names: Vec<String>,
+    pub meshes: Vec<Mesh>,
+    pub spheres: Vec<SphereObject>,
+    pub background: Background,
+    /// Named views; the first is the default.
+    pub views: Vec<(String, CameraDesc)>,
+    pub settings: RenderSettings,
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Self {
+            materials: Vec::new(),
+            material_names: Vec::new(),
+            meshes: Vec::new(),
+            spheres: Vec::new(),
+            background: Background::Constant(Vec3::ZERO),
+            views: Vec::new(),
+            settings: RenderSettings::default(),
+        }
+    }
+}
+
+impl Scene {
+    /// Adds a material and returns its index.
+    pub fn add_material(&mut self, name: impl Into<String>, m: Material) -> u32 {
+        self.materials.push(m);
+        self.material_names.push(name.into());
+        (self.materials.len() - 1) as u32
+    }
+
+    pub fn material_index(&self, name: &str) -> Option<u32> {
+        self.material_names.iter().position(|n| n == name).map(|i| i as u32)
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.meshes.iter().map(|m| m.triangles.len()).sum()
+    }
+
+    /// The view called `name`, or the first one (a default camera if the scene has none).
+    pub fn view(&self, name: Option<&str>) -> Option<CameraDesc> {
+        match name {
+            Some(n) => self.views.iter().find(|(v, _)| v == n).map(|(_, c)| c.clone()),
+            None => Some(self.views.first().map(|(_, c)| c.clone()).unwrap_or_else(|| self.framing_camera())),
+        }
+    }
+
+    pub fn view_names(&self) -> Vec<&str> {
+        self.views.iter().map(|(n, _)| n.as_str()).collect()
+    }
+
+    /// World bounds of all geometry.
+    pub fn bounds(&self) -> phr_bvh::Aabb {
+        let mut b = phr_bvh::Aabb::EMPTY;
+        for m in &self.meshes {
+            for &p in &m.positions {
+                b = b.grown(p);
+            }
+        }
+        for s in &self.spheres {
+            b = b.union(s.sphere.bounds());
+        }
+        b
+    }
+
+    /// A camera that frames the whole scene from the front-right, slightly above: what a user
+    /// wants when they open a bare mesh file.
+    pub fn framing_camera(&self) -> CameraDesc {
+        let b = self.bounds();
+        if b.is_empty() {
+            return CameraDesc::default();
+        }
+        let centre = b.center();
+        let radius = 0.5 * b.extent().length().max(1e-6);
+        let vfov: f32 = 40.0;
+        let distance = radius / (vfov.to_radians() * 0.5).sin() * 1.05;
+        let dir = Vec3::new(0.35, 0.3, 1.0).normalize();
+        CameraDesc { position: centre + dir * distance, look_at: centre, up: Vec3::Y, vfov_degrees: vfov }
+    }
+}
+
+/// Opens what the user named: a scene file (`.json`) or a mesh file (`.obj`, `.ply`,
+/// `.gltf`, `.glb`, optionally `.gz`), which becomes a scene with the file's own materials
+/// (full MTL mapping), the RTIOW gradient sky and a camera framing the mesh.
+pub fn load_scene(path: &std::path::Path) -> Result<Scene, crate::error::LoadError> {
+    let name = path.to_string_lossy().to_ascii_lowercase();
+    if name.ends_with(".json") {
+        return json::load_scene_file(path);
+    }
+    let data = crate::load::load_mesh(path)?;
+    let mut scene = Scene {
+        background: Background::Gradient { bottom: Vec3::ONE, top: Vec3::new(0.5, 0.7, 1.0) },
+        ..Scene::default()
+    };
+    let group_material: Vec<u32> = data
+        .groups
+        .iter()
+        .zip(&data.group_materials)
+        .map(|(name, m)| {
+            scene.add_material(name.clone(), materials::map_source_material(m, materials::MtlMapping::Full))
+        })
+        .collect();
+    for c in &data.cameras {
+        scene.views.push((c.name.clone(), c.into()));
+    }
+    let triangle_material = data.triangle_group.iter().map(|&g| group_material[g as usize]).collect();
+    let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    scene.meshes.push(Mesh {
+        name: file_name,
+        positions: data.positions,
+        triangles: data.triangles,
+        triangle_material,
+    });
+    let auto = scene.framing_camera();
+    scene.views.insert(0, ("auto".into(), auto));
+    Ok(scene)
+}
