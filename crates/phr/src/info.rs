@@ -1,0 +1,54 @@
+//! `phr info`: what is in a scene, and what the BVH over it looks like.
+
+use crate::scene_arg::{open_scene, BUILTIN};
+use anyhow::Result;
+use clap::Args;
+use phr_bvh::{sah_cost, tree_stats, validate, Builder, SahConstants};
+use phr_render::geometry::Geometry;
+use std::time::Instant;
+
+#[derive(Args)]
+pub struct InfoArgs {
+    /// A scene file (.json), a mesh file, or `builtin`.
+    #[arg(default_value = BUILTIN)]
+    pub scene: String,
+    #[arg(long, default_value = "lbvh")]
+    pub builder: Builder,
+}
+
+pub fn run(args: &InfoArgs) -> Result<()> {
+    let load_start = Instant::now();
+    let scene = open_scene(&args.scene)?;
+    let load_ms = load_start.elapsed().as_secs_f64() * 1e3;
+    let mut geometry = Geometry::new(&scene);
+    let start = Instant::now();
+    geometry.build(|b| args.builder.build(b));
+    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let b = scene.bounds();
+    println!("scene       {}", args.scene);
+    println!("load        {load_ms:.1} ms");
+    println!("triangles   {}", geometry.triangles.len());
+    println!("spheres     {}", geometry.spheres.len());
+    println!("meshes      {}", scene.meshes.len());
+    println!("materials   {}", scene.material_names.join(", "));
+    println!("views       {}", scene.view_names().join(", "));
+    println!(
+        "bounds      ({:.4}, {:.4}, {:.4}) .. ({:.4}, {:.4}, {:.4})",
+        b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z
+    );
+    let s = &scene.settings;
+    println!("settings    {}x{}, {} spp, max depth {}", s.width, s.height, s.spp, s.max_depth);
+    let t = tree_stats(&geometry.bvh);
+    println!("builder     {} ({build_ms:.1} ms)", args.builder);
+    println!("nodes       {} ({} leaves)", t.nodes, t.leaves);
+    println!("depth       max {}, mean leaf depth {:.1}", t.max_depth, t.mean_leaf_depth);
+    println!("leaf size   max {}, mean {:.2}", t.max_leaf_size, t.mean_leaf_size);
+    println!(
+        "SAH cost    {:.3} (ct=1, ci=1)   {:.3} (ct=2, ci=1, thesis)",
+        sah_cost(&geometry.bvh, SahConstants::UNIT),
+        sah_cost(&geometry.bvh, SahConstants::THESIS)
+    );
+    let check = validate(&geometry.bvh, &geometry.boxes, args.builder.max_leaf_size());
+    println!("invariants  {}", check.map_or_else(|e| format!("BROKEN: {e}"), |()| "ok".into()));
+    Ok(())
+}

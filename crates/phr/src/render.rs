@@ -1,0 +1,179 @@
+//! `phr render`: load, build, trace progressively, write images, print a summary.
+
+use crate::scene_arg::{open_scene, BUILTIN};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use phr_bvh::{sah_cost, Builder, SahConstants};
+use phr_render::camera::Camera;
+use phr_render::film::Film;
+use phr_render::geometry::Geometry;
+use phr_render::integrator::PathTracer;
+use phr_render::output::{write_heatmap, write_image};
+use phr_render::render::Renderer;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args, Clone)]
+pub struct RenderArgs {
+    /// A scene file (.json), a mesh (.obj, .ply, .gltf, .glb, optionally .gz), or `builtin`.
+    #[arg(default_value = BUILTIN)]
+    pub scene: String,
+    /// Named view of the scene (default: its first).
+    #[arg(long)]
+    pub view: Option<String>,
+    #[arg(long)]
+    pub width: Option<u32>,
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Samples per pixel (frames of 1 sample each, accumulated).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Maximum ray segments per path, camera ray included.
+    #[arg(long)]
+    pub max_depth: Option<u32>,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// BVH builder.
+    #[arg(long, default_value = "lbvh")]
+    pub builder: Builder,
+    /// Output image: .png (sRGB), .exr or .pfm (linear).
+    #[arg(long, short, default_value = "render.png")]
+    pub out: PathBuf,
+    /// Also write the linear mean to this .exr or .pfm.
+    #[arg(long)]
+    pub linear: Option<PathBuf>,
+    /// Also write the per-pixel variance of the mean (.exr or .pfm), for compare_images.py --test-var.
+    #[arg(long)]
+    pub variance: Option<PathBuf>,
+    /// Also write a heatmap of traversal steps per primary ray (.png).
+    #[arg(long)]
+    pub heatmap: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+impl Default for RenderArgs {
+    fn default() -> Self {
+        Self {
+            scene: BUILTIN.into(),
+            view: None,
+            width: None,
+            height: None,
+            spp: None,
+            max_depth: None,
+            seed: 0,
+            builder: Builder::default(),
+            out: "render.png".into(),
+            linear: None,
+            variance: None,
+            heatmap: None,
+            quiet: false,
+        }
+    }
+}
+
+/// Fails before any work if an output could not be written (bad folder or extension).
+fn check_output(path: &Path, allowed: &[&str]) -> Result<()> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    if !allowed.contains(&ext.as_str()) {
+        bail!("{}: unsupported output format (use {})", path.display(), allowed.join(", "));
+    }
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        bail!("{}: folder {} does not exist", path.display(), dir.display());
+    }
+    Ok(())
+}
+
+pub fn run(args: &RenderArgs) -> Result<()> {
+    check_output(&args.out, &["png", "exr", "pfm"])?;
+    for p in [&args.linear, &args.variance].into_iter().flatten() {
+        check_output(p, &["exr", "pfm"])?;
+    }
+    if let Some(p) = &args.heatmap {
+        check_output(p, &["png"])?;
+    }
+    let scene = open_scene(&args.scene)?;
+    let view = scene.view(args.view.as_deref()).with_context(|| {
+        format!(
+            "no view \"{}\" in {} (views: {})",
+            args.view.as_deref().unwrap_or(""),
+            args.scene,
+            scene.view_names().join(", ")
+        )
+    })?;
+    let width = args.width.unwrap_or(scene.settings.width);
+    let height = args.height.unwrap_or(scene.settings.height);
+    let spp = args.spp.unwrap_or(scene.settings.spp);
+    let max_depth = args.max_depth.unwrap_or(scene.settings.max_depth);
+    if width == 0 || height == 0 || spp == 0 || max_depth == 0 {
+        bail!("width, height, spp and max-depth must be at least 1");
+    }
+
+    let mut geometry = Geometry::new(&scene);
+    let build_start = Instant::now();
+    geometry.build(|boxes| args.builder.build(boxes));
+    let build_ms = build_start.elapsed().as_secs_f64() * 1e3;
+
+    let renderer = Renderer {
+        tracer: PathTracer {
+            geometry: &geometry,
+            materials: &scene.materials,
+            background: &scene.background,
+            max_depth,
+        },
+        camera: Camera::new(&view, width, height),
+        width,
+        height,
+        seed: args.seed,
+    };
+    let progress = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(spp as u64) };
+    progress.set_style(
+        ProgressStyle::with_template("{spinner} rendering [{bar:30}] {pos}/{len} spp  {elapsed} (eta {eta})  {msg}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    let mut film = Film::new(width, height);
+    let mut rays = 0u64;
+    let render_start = Instant::now();
+    for frame in 0..spp {
+        let (pixels, stats) = renderer.render_frame(frame);
+        film.add_frame(&pixels);
+        rays += stats.rays;
+        progress.inc(1);
+        progress.set_message(format!("{:.1} Mrays/s", rays as f64 / render_start.elapsed().as_secs_f64() / 1e6));
+    }
+    let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
+    progress.finish_and_clear();
+
+    let mean = film.mean();
+    write_image(&args.out, width, height, &mean).with_context(|| format!("writing {}", args.out.display()))?;
+    if let Some(p) = &args.linear {
+        write_image(p, width, height, &mean).with_context(|| format!("writing {}", p.display()))?;
+    }
+    if let Some(p) = &args.variance {
+        write_image(p, width, height, &film.variance_of_mean()).with_context(|| format!("writing {}", p.display()))?;
+    }
+    if let Some(p) = &args.heatmap {
+        let steps: Vec<u32> = renderer.primary_ray_stats().iter().map(|s| s.nodes).collect();
+        let max = write_heatmap(p, width, height, &steps, None).with_context(|| format!("writing {}", p.display()))?;
+        let mean = steps.iter().map(|&s| s as f64).sum::<f64>() / steps.len() as f64;
+        println!("heatmap: {} (mean {mean:.1} traversal steps per primary ray, red = {max})", p.display());
+    }
+    let sah = sah_cost(&geometry.bvh, SahConstants::UNIT);
+    println!(
+        "{}: {} triangles, {} spheres | {} build {:.1} ms | render {:.0} ms ({width}x{height}, {spp} spp) | {:.2} Mrays/s | SAH cost {:.2}",
+        args.scene,
+        geometry.triangles.len(),
+        geometry.spheres.len(),
+        args.builder,
+        build_ms,
+        render_ms,
+        rays as f64 / (render_ms / 1e3) / 1e6,
+        sah
+    );
+    println!("wrote {}", args.out.display());
+    Ok(())
+}
