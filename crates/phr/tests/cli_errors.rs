@@ -1,0 +1,265 @@
+//! The `phr` binary on bad input: every failure is a non-zero exit with one `error:` line on
+//! stderr naming the offending file (and line, for text formats), no panic, and no image (nor
+//! a stray partial file) left behind. Plus the happy path on a tiny OBJ, for `render` and `info`.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A quad: 4 vertices, 2 triangles.
+const QUAD_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n";
+
+/// A fresh, empty folder for one test; removed when dropped.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(test: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("phr-cli-errors-{}-{test}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Self(dir)
+    }
+
+    fn write(&self, name: &str, bytes: impl AsRef<[u8]>) {
+        std::fs::write(self.0.join(name), bytes).unwrap();
+    }
+
+    /// Names of the files in the folder.
+    fn files(&self) -> BTreeSet<String> {
+        std::fs::read_dir(&self.0).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect()
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+struct Output {
+    code: Option<i32>,
+    stdout: String,
+    stderr: String,
+    elapsed: Duration,
+}
+
+/// Runs `phr args...` in `dir`, killing it after a minute (a hang is a failure, not a stuck test).
+fn phr(dir: &Path, args: &[&str]) -> Output {
+    let start = Instant::now();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_phr"))
+        .args(args)
+        .current_dir(dir)
+        .env_remove("RUST_BACKTRACE")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("cannot start phr");
+    let deadline = start + Duration::from_secs(60);
+    while child.try_wait().unwrap().is_none() {
+        if Instant::now() > deadline {
+            child.kill().unwrap();
+            let _ = child.wait();
+            panic!("phr {args:?} did not finish within 60 s");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let out = child.wait_with_output().unwrap();
+    Output {
+        code: out.status.code(),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+        elapsed: start.elapsed(),
+    }
+}
+
+/// Runs `phr render SCENE --out out.png EXTRA...` in a folder holding only `inputs`, and checks
+/// the failure contract. Returns the one error line.
+fn expect_render_failure(test: &str, inputs: &[(&str, &[u8])], scene: &str, extra: &[&str]) -> String {
+    let dir = TempDir::new(test);
+    for (name, bytes) in inputs {
+        dir.write(name, bytes);
+    }
+    let before = dir.files();
+    let mut args = vec!["render", scene, "--out", "out.png"];
+    args.extend_from_slice(extra);
+    let out = phr(&dir.0, &args);
+    let what = format!("{test}: phr {args:?}\nstdout:\n{}\nstderr:\n{}", out.stdout, out.stderr);
+    assert!(out.code.is_some_and(|c| c != 0), "{what}\nexpected a non-zero exit code, got {:?}", out.code);
+    assert!(!out.stderr.contains("panicked"), "{what}\npanicked");
+    let errors: Vec<&str> = out.stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(errors.len(), 1, "{what}\nexpected exactly one `error:` line");
+    assert!(!out.stdout.contains("wrote"), "{what}\nclaims to have written something");
+    // Nothing written: no image, no temporary `.out.png.*.partial.png`, nothing else.
+    assert_eq!(dir.files(), before, "{what}\nfiles left in the folder");
+    errors[0].to_string()
+}
+
+fn assert_names(line: &str, needles: &[&str]) {
+    for n in needles {
+        assert!(line.contains(n), "error line {line:?} should contain {n:?}");
+    }
+}
+
+/// A binary little-endian PLY of a quad: 4 float vertices, 2 triangle faces.
+fn binary_ply() -> Vec<u8> {
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\ncomment made by cli_errors.rs\nelement vertex 4\n\
+        property float x\nproperty float y\nproperty float z\nelement face 2\n\
+        property list uchar int vertex_indices\nend_header\n"
+        .to_vec();
+    for p in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]] {
+        for c in p {
+            bytes.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    for face in [[0i32, 1, 2], [0, 2, 3]] {
+        bytes.push(3);
+        for i in face {
+            bytes.extend_from_slice(&i.to_le_bytes());
+        }
+    }
+    bytes
+}
+
+#[test]
+fn missing_scene_file() {
+    let line = expect_render_failure("missing", &[], "missing.obj", &[]);
+    assert_names(&line, &["missing.obj"]);
+}
+
+#[test]
+fn truncated_binary_ply() {
+    let full = binary_ply();
+    // The intact file renders: the failure below is the truncation, not the writer of this test.
+    {
+        let dir = TempDir::new("ply-intact");
+        dir.write("quad.ply", &full);
+        let out = phr(
+            &dir.0,
+            &["render", "quad.ply", "--out", "out.png", "--width", "8", "--height", "8", "--spp", "1", "--quiet"],
+        );
+        assert_eq!(out.code, Some(0), "intact PLY: {}", out.stderr);
+        assert!(out.stdout.contains("2 triangles"), "{}", out.stdout);
+    }
+    // Cut inside the second face, and inside the vertices.
+    for (test, cut) in [("ply-cut-faces", full.len() - 7), ("ply-cut-vertices", full.len() - 2 * 13 - 20)] {
+        let line = expect_render_failure(test, &[("quad.ply", &full[..cut])], "quad.ply", &[]);
+        assert_names(&line, &["quad.ply"]);
+        assert!(line.contains("ends") || line.contains("truncated"), "{line}");
+    }
+}
+
+#[test]
+fn obj_face_index_out_of_range() {
+    let obj = "# a triangle\nv 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 2 9\n";
+    let line = expect_render_failure("obj-range", &[("bad.obj", obj.as_bytes())], "bad.obj", &[]);
+    assert_names(&line, &["bad.obj:6:", "out of range"]);
+}
+
+#[test]
+fn obj_nan_coordinate() {
+    let obj = "v 0 0 0\nv 1 0 0\nv nan 0 0\nf 1 2 3\n";
+    let line = expect_render_failure("obj-nan", &[("nan.obj", obj.as_bytes())], "nan.obj", &[]);
+    assert_names(&line, &["nan.obj:3:", "not finite"]);
+}
+
+#[test]
+fn obj_without_faces() {
+    let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\n";
+    let line = expect_render_failure("obj-empty", &[("empty.obj", obj.as_bytes())], "empty.obj", &[]);
+    assert_names(&line, &["empty.obj", "no triangles"]);
+}
+
+#[test]
+fn json_unknown_material_name() {
+    let json = r#"{
+  "materials": { "white": { "type": "lambertian", "albedo": 0.7 } },
+  "objects": [
+    { "type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white" },
+    { "type": "sphere", "center": [0, 3, 0], "radius": 1, "material": "red" }
+  ]
+}
+"#;
+    let line = expect_render_failure("json-name", &[("scene.json", json.as_bytes())], "scene.json", &[]);
+    assert_names(&line, &["scene.json", "unknown material", "red"]);
+}
+
+#[test]
+fn json_unknown_material_type() {
+    let json = r#"{
+  "materials": {
+    "white": {
+      "type": "plastic",
+      "albedo": 0.7
+    }
+  },
+  "objects": [
+    { "type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "white" }
+  ]
+}
+"#;
+    let line = expect_render_failure("json-type", &[("scene.json", json.as_bytes())], "scene.json", &[]);
+    assert_names(&line, &["scene.json:4:", "plastic"]);
+}
+
+#[test]
+fn output_folder_does_not_exist() {
+    let dir = TempDir::new("out-dir");
+    dir.write("quad.obj", QUAD_OBJ);
+    let before = dir.files();
+    // A render this size would take minutes: failing fast shows the check comes first.
+    let args =
+        ["render", "quad.obj", "--out", "nowhere/out.png", "--width", "4000", "--height", "4000", "--spp", "100000"];
+    let out = phr(&dir.0, &args);
+    assert!(out.code.is_some_and(|c| c != 0), "exit {:?}: {}", out.code, out.stderr);
+    assert!(!out.stderr.contains("panicked"), "{}", out.stderr);
+    let errors: Vec<&str> = out.stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(errors.len(), 1, "{}", out.stderr);
+    assert_names(errors[0], &["nowhere/out.png", "does not exist"]);
+    assert!(out.stdout.is_empty(), "rendered before failing: {}", out.stdout);
+    assert!(out.elapsed < Duration::from_secs(20), "took {:?}: rendered before failing?", out.elapsed);
+    assert_eq!(dir.files(), before);
+    assert!(!dir.0.join("nowhere").exists());
+}
+
+#[test]
+fn unknown_builder() {
+    let line =
+        expect_render_failure("builder", &[("quad.obj", QUAD_OBJ.as_bytes())], "quad.obj", &["--builder", "octree"]);
+    assert_names(&line, &["--builder", "octree"]);
+}
+
+#[test]
+fn unknown_view() {
+    let line = expect_render_failure("view", &[("quad.obj", QUAD_OBJ.as_bytes())], "quad.obj", &["--view", "sideways"]);
+    assert_names(&line, &["quad.obj", "sideways"]);
+}
+
+#[test]
+fn tiny_obj_renders_and_validates() {
+    let dir = TempDir::new("ok");
+    dir.write("quad.obj", QUAD_OBJ);
+    let out = phr(
+        &dir.0,
+        &["render", "quad.obj", "--width", "16", "--height", "16", "--spp", "2", "--quiet", "--out", "out.png"],
+    );
+    assert_eq!(out.code, Some(0), "stdout:\n{}\nstderr:\n{}", out.stdout, out.stderr);
+    assert!(!out.stderr.contains("panicked"), "{}", out.stderr);
+    let summary = out.stdout.lines().find(|l| l.starts_with("quad.obj:")).unwrap_or_else(|| panic!("{}", out.stdout));
+    assert!(summary.contains("2 triangles"), "{summary}");
+    assert!(summary.contains("16x16, 2 spp"), "{summary}");
+    let png = std::fs::read(dir.0.join("out.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    // IHDR: width and height, big-endian, right after the chunk header.
+    assert_eq!(&png[12..16], b"IHDR");
+    assert_eq!(u32::from_be_bytes(png[16..20].try_into().unwrap()), 16);
+    assert_eq!(u32::from_be_bytes(png[20..24].try_into().unwrap()), 16);
+    let expected: BTreeSet<String> = ["quad.obj", "out.png"].map(String::from).into();
+    assert_eq!(dir.files(), expected, "stray files");
+
+    let info = phr(&dir.0, &["info", "quad.obj"]);
+    assert_eq!(info.code, Some(0), "{}", info.stderr);
+    assert!(info.stdout.contains("triangles   2"), "{}", info.stdout);
+    assert!(info.stdout.contains("invariants  ok"), "{}", info.stdout);
+}
