@@ -1,16 +1,27 @@
-//! One name for every builder, so front ends can offer a choice (`--builder lbvh`) and
+//! One name for every builder, so front ends can offer a choice (`--builder phr-hq`) and
 //! benchmarks can loop over them.
+//!
+//! Names: `lbvh`, `phr-fast` (α = 0.5, δ = 6), `phr-hq` (α = 0.55, δ = 9), `phr:α,δ`,
+//! `sweep-sah`, `binned-sah`.
 
 use crate::aabb::Aabb;
+use crate::binned_sah::{build_binned_sah, BinnedSahOptions};
 use crate::lbvh::{build_lbvh, LbvhOptions};
 use crate::node::Bvh;
+use crate::phr::{build_phr, PhrOptions, PhrStats};
+use crate::sweep_sah::{build_sweep_sah, SweepSahOptions};
 use std::fmt;
 use std::str::FromStr;
+use std::time::{Duration, Instant};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Builder {
     /// [`crate::lbvh`] with leaves of at most `max_leaf_size` primitives.
     Lbvh(LbvhOptions),
+    /// [`crate::phr`] over an auxiliary LBVH with one primitive per leaf.
+    Phr(PhrOptions),
+    SweepSah(SweepSahOptions),
+    BinnedSah(BinnedSahOptions),
 }
 
 impl Default for Builder {
@@ -19,10 +30,53 @@ impl Default for Builder {
     }
 }
 
+/// The auxiliary tree PHR refines: the full radix tree.
+pub const PHR_AUX: LbvhOptions = LbvhOptions { max_leaf_size: 1 };
+
+/// A build with its timings.
+#[derive(Clone, Debug)]
+pub struct BuildReport {
+    pub bvh: Bvh,
+    /// Time of the auxiliary LBVH (PHR only).
+    pub aux_time: Duration,
+    /// Time of the builder proper (for PHR: without the auxiliary LBVH).
+    pub build_time: Duration,
+    /// PHR's statistics (Σ|cut|).
+    pub phr: Option<PhrStats>,
+}
+
+impl BuildReport {
+    pub fn total_time(&self) -> Duration {
+        self.aux_time + self.build_time
+    }
+}
+
 impl Builder {
+    pub const PHR_FAST: Builder = Builder::Phr(PhrOptions::FAST);
+    pub const PHR_HQ: Builder = Builder::Phr(PhrOptions::HQ);
+
     pub fn build(&self, boxes: &[Aabb]) -> Bvh {
+        self.build_timed(boxes).bvh
+    }
+
+    pub fn build_timed(&self, boxes: &[Aabb]) -> BuildReport {
+        let start = Instant::now();
         match self {
-            Builder::Lbvh(o) => build_lbvh(boxes, *o),
+            Builder::Phr(o) => {
+                let aux = build_lbvh(boxes, PHR_AUX);
+                let aux_time = start.elapsed();
+                let (bvh, stats) = build_phr(&aux, o);
+                BuildReport { bvh, aux_time, build_time: start.elapsed() - aux_time, phr: Some(stats) }
+            }
+            _ => {
+                let bvh = match self {
+                    Builder::Lbvh(o) => build_lbvh(boxes, *o),
+                    Builder::SweepSah(o) => build_sweep_sah(boxes, o),
+                    Builder::BinnedSah(o) => build_binned_sah(boxes, o),
+                    Builder::Phr(_) => unreachable!(),
+                };
+                BuildReport { bvh, aux_time: Duration::ZERO, build_time: start.elapsed(), phr: None }
+            }
         }
     }
 
@@ -30,6 +84,19 @@ impl Builder {
     pub fn max_leaf_size(&self) -> u32 {
         match self {
             Builder::Lbvh(o) => o.max_leaf_size,
+            Builder::Phr(o) => o.leaf.max_leaf_size,
+            Builder::SweepSah(o) => o.leaf.max_leaf_size,
+            Builder::BinnedSah(o) => o.leaf.max_leaf_size,
+        }
+    }
+
+    /// Sets the branching factor (2 to 16). Only PHR builds wide trees natively.
+    pub fn with_branching(self, k: u32) -> Result<Self, String> {
+        match self {
+            Builder::Phr(o) if (2..=16).contains(&k) => Ok(Builder::Phr(PhrOptions { branching: k, ..o })),
+            Builder::Phr(_) => Err(format!("branching factor {k} is outside 2..=16")),
+            _ if k == 2 => Ok(self),
+            _ => Err(format!("{self} builds binary trees only; branching {k} needs a PHR builder")),
         }
     }
 }
@@ -38,6 +105,22 @@ impl fmt::Display for Builder {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Builder::Lbvh(_) => write!(f, "lbvh"),
+            Builder::Phr(o) => {
+                let name = if (o.alpha, o.delta) == (PhrOptions::FAST.alpha, PhrOptions::FAST.delta) {
+                    "phr-fast".to_string()
+                } else if (o.alpha, o.delta) == (PhrOptions::HQ.alpha, PhrOptions::HQ.delta) {
+                    "phr-hq".to_string()
+                } else {
+                    format!("phr:{},{}", o.alpha, o.delta)
+                };
+                if o.branching == 2 {
+                    write!(f, "{name}")
+                } else {
+                    write!(f, "{name} (k={})", o.branching)
+                }
+            }
+            Builder::SweepSah(_) => write!(f, "sweep-sah"),
+            Builder::BinnedSah(_) => write!(f, "binned-sah"),
         }
     }
 }
@@ -46,9 +129,23 @@ impl FromStr for Builder {
     type Err = String;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s.to_ascii_lowercase().as_str() {
+        let s = s.trim().to_ascii_lowercase();
+        if let Some(params) = s.strip_prefix("phr:") {
+            let parse = |v: &str| v.trim().parse::<f32>().ok().filter(|x| x.is_finite() && *x >= 0.0);
+            return match params.split_once(',').map(|(a, d)| (parse(a), parse(d))) {
+                Some((Some(alpha), Some(delta))) => Ok(Builder::Phr(PhrOptions::with(alpha, delta))),
+                _ => Err(format!("\"{s}\": expected phr:ALPHA,DELTA with two non-negative numbers, e.g. phr:0.5,6")),
+            };
+        }
+        match s.as_str() {
             "lbvh" => Ok(Builder::Lbvh(LbvhOptions::default())),
-            other => Err(format!("unknown builder \"{other}\" (available: lbvh)")),
+            "phr-fast" | "phr" => Ok(Builder::PHR_FAST),
+            "phr-hq" => Ok(Builder::PHR_HQ),
+            "sweep-sah" => Ok(Builder::SweepSah(SweepSahOptions::default())),
+            "binned-sah" => Ok(Builder::BinnedSah(BinnedSahOptions::default())),
+            other => Err(format!(
+                "unknown builder \"{other}\" (available: lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah, binned-sah)"
+            )),
         }
     }
 }

@@ -8,20 +8,32 @@
 //! Builders, each in a module named after its algorithm:
 //! - [`lbvh`]: the linear BVH (Morton codes + radix sort + radix tree), the fast builder and
 //!   the auxiliary tree of PHR.
+//! - [`phr`]: Progressive Hierarchical Refinement, the builder the thesis is about.
+//! - [`sweep_sah`]: the full-sweep SAH builder, the quality reference PHR approximates.
+//! - [`binned_sah`]: the binned SAH builder, what Embree, pbrt and tinybvh use by default.
+//!
+//! [`builder::Builder`] names them all for front ends; all top-down builders share one
+//! [`sah::LeafPolicy`], so their SAH costs ([`metrics::sah_cost`]) compare.
 //!
 //! Primitive tests for the common cases: [`triangle`] (Möller–Trumbore), [`sphere`].
 
 pub mod aabb;
+pub mod binned_sah;
 pub mod builder;
+pub mod dynamic;
 pub mod lbvh;
 pub mod metrics;
 pub mod morton;
 pub mod node;
 mod parallel;
+pub mod phr;
 pub mod radix_sort;
 pub mod ray;
 pub mod refit;
+pub mod sah;
 pub mod sphere;
+pub mod sweep_sah;
+mod topdown;
 pub mod traverse;
 pub mod triangle;
 pub mod validate;

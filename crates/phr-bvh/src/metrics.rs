@@ -2,7 +2,7 @@
 //! leaf statistics.
 //!
 //! The SAH cost of a tree is the expected cost of a random ray that hits the root box:
-//! `(c_t Σ_interior A(n) + c_i Σ_leaf A(n)·|n|) / A(root)`. The thesis uses `c_t = 2`,
+//! `(c_t Σ_interior A(n) + c_i Σ_leaf A(n)·|n|) / A(root)`, for any branching factor. The thesis uses `c_t = 2`,
 //! `c_i = 1`; the issue tables also report `c_t = c_i = 1`.
 
 use crate::node::Bvh;
@@ -41,7 +41,7 @@ pub fn sah_cost(bvh: &Bvh, c: SahConstants) -> f64 {
         .map(|n| {
             let a = n.bounds.surface_area() as f64;
             if n.is_leaf() {
-                c.intersection as f64 * a * n.count as f64
+                c.intersection as f64 * a * n.prim_count() as f64
             } else {
                 c.traversal as f64 * a
             }
@@ -76,11 +76,10 @@ pub fn tree_stats(bvh: &Bvh) -> TreeStats {
         if n.is_leaf() {
             s.leaves += 1;
             depth_sum += d;
-            prim_sum += n.count as usize;
-            s.max_leaf_size = s.max_leaf_size.max(n.count);
+            prim_sum += n.prim_count() as usize;
+            s.max_leaf_size = s.max_leaf_size.max(n.prim_count());
         } else {
-            stack.push((n.first as usize, d + 1));
-            stack.push((n.first as usize + 1, d + 1));
+            stack.extend(n.children().map(|c| (c as usize, d + 1)));
         }
     }
     s.mean_leaf_depth = depth_sum as f64 / s.leaves as f64;

@@ -2,14 +2,14 @@
 //! (Karras 2012, section 4; thesis sections 4.1 and 5.3).
 //!
 //! One task per leaf computes the leaf's box and climbs towards the root. At each parent it
-//! increments the parent's counter: the first child to arrive stops, the second (which then
-//! knows both children are final) writes the union and climbs on. Every node's box is thus
+//! increments the parent's counter: every child but the last to arrive stops there, the last
+//! (which then knows all children are final) writes the union and climbs on. Every node's box is thus
 //! written exactly once, by exactly one thread, with no lock. The LBVH builder uses it for its
 //! initial bounds, and dynamic scenes use it every frame after vertices move: the topology
 //! stays, only the boxes change.
 
 use crate::aabb::Aabb;
-use crate::node::{Bvh, Node, NO_PARENT};
+use crate::node::{Bvh, Node, INTERIOR, NO_PARENT};
 use crate::parallel::UnsafeSlice;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -34,27 +34,28 @@ pub fn refit(bvh: &mut Bvh, boxes: &[Aabb]) {
         // reading them races with nothing; bounds are written by exactly one task per node
         // (argued at each write below).
         let node: *mut Node = unsafe { nodes.ptr(i) };
-        let (first, count) = unsafe { ((*node).first as usize, (*node).count as usize) };
-        if count == 0 {
+        let (first, count) = unsafe { ((*node).first as usize, (*node).count) };
+        if count & INTERIOR != 0 {
             return;
         }
+        let count = count as usize;
         let leaf_box = prims[first..first + count].iter().fold(Aabb::EMPTY, |b, &p| b.union(boxes[p as usize]));
         // SAFETY: leaf `i` is visited by this task only.
         unsafe { (&raw mut (*node).bounds).write(leaf_box) };
         let mut parent = parents[i];
         while parent != NO_PARENT {
-            // AcqRel: the second arrival sees the first arrival's write of its child's box.
-            if arrivals[parent as usize].fetch_add(1, Ordering::AcqRel) == 0 {
+            // SAFETY: topology fields are read-only during the refit.
+            let children = unsafe { (*nodes.ptr(parent as usize)).children() };
+            // AcqRel: the last arrival sees the earlier arrivals' writes of their children's boxes.
+            if arrivals[parent as usize].fetch_add(1, Ordering::AcqRel) + 1 < children.len() as u32 {
                 return;
             }
-            // SAFETY: both children's boxes are final (each was written before its task's
-            // fetch_add on this counter), and only the second arrival, this task, writes the
+            // SAFETY: all children's boxes are final (each was written before its task's
+            // fetch_add on this counter), and only the last arrival, this task, writes the
             // parent's box.
             unsafe {
-                let p = nodes.ptr(parent as usize);
-                let c = (*p).first as usize;
-                let union = (*nodes.ptr(c)).bounds.union((*nodes.ptr(c + 1)).bounds);
-                (&raw mut (*p).bounds).write(union);
+                let union = children.fold(Aabb::EMPTY, |b, c| b.union((*nodes.ptr(c as usize)).bounds));
+                (&raw mut (*nodes.ptr(parent as usize)).bounds).write(union);
             }
             parent = parents[parent as usize];
         }

@@ -1,4 +1,4 @@
-//! Stack-based traversal of the binary BVH: closest hit and any hit.
+//! Stack-based traversal of the BVH (binary or wide): closest hit and any hit.
 //!
 //! The caller supplies the primitive test as a closure, so the tree knows nothing about
 //! triangles or spheres. Both children of an interior node are tested with the slab test;
@@ -8,7 +8,7 @@
 //! visited) and primitive tests per ray, for the heatmap of thesis Figure 5.3.
 
 use crate::aabb::ROBUST_SLAB;
-use crate::node::Bvh;
+use crate::node::{Bvh, MAX_BRANCHING};
 use crate::ray::Ray;
 
 /// Per-ray work counters.
@@ -137,7 +137,7 @@ fn traverse_until<const COUNT: bool>(
                     }
                 }
             }
-        } else {
+        } else if node.child_count() == 2 {
             let (a, b) = (node.first, node.first + 1);
             let ta = nodes[a as usize].bounds.intersect(ray);
             let tb = nodes[b as usize].bounds.intersect(ray);
@@ -148,6 +148,26 @@ fn traverse_until<const COUNT: bool>(
                 }
                 current = near;
                 continue;
+            }
+        } else {
+            // A wide node: push the children that are hit, farthest first, so the nearest
+            // is popped next.
+            let mut hit_children = [(0u32, 0.0f32); MAX_BRANCHING];
+            let mut k = 0;
+            for c in node.children() {
+                let t = nodes[c as usize].bounds.intersect(ray);
+                if t != f32::INFINITY {
+                    let mut j = k;
+                    while j > 0 && hit_children[j - 1].1 < t {
+                        hit_children[j] = hit_children[j - 1];
+                        j -= 1;
+                    }
+                    hit_children[j] = (c, t);
+                    k += 1;
+                }
+            }
+            for &child in &hit_children[..k] {
+                stack.push(child);
             }
         }
         // Pop the next node whose box still starts before the closest hit so far.

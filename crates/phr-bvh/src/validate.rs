@@ -3,7 +3,7 @@
 //! - every node is reachable from the root exactly once (no cycles, no sharing, no orphans);
 //! - every primitive appears in exactly one leaf;
 //! - every parent's box encloses its children's, every leaf's box encloses its primitives';
-//! - leaves hold between 1 and `max_leaf_size` primitives;
+//! - leaves hold between 1 and `max_leaf_size` primitives, interior nodes at least 2 children;
 //! - `parents` (when present) matches the child links.
 
 use crate::aabb::Aabb;
@@ -29,8 +29,8 @@ pub fn validate(bvh: &Bvh, boxes: &[Aabb], max_leaf_size: u32) -> Result<(), Str
         }
         let n = &bvh.nodes[i];
         if n.is_leaf() {
-            if n.count > max_leaf_size {
-                return Err(format!("leaf {i} holds {} > {max_leaf_size} primitives", n.count));
+            if n.count == 0 || n.count > max_leaf_size {
+                return Err(format!("leaf {i} holds {} primitives (allowed: 1 to {max_leaf_size})", n.count));
             }
             let end = n.first as usize + n.count as usize;
             let refs = bvh.prim_indices.get(n.first as usize..end).ok_or(format!("leaf {i} range out of bounds"))?;
@@ -44,11 +44,11 @@ pub fn validate(bvh: &Bvh, boxes: &[Aabb], max_leaf_size: u32) -> Result<(), Str
                 }
             }
         } else {
-            let c = n.first as usize;
-            if c + 1 >= bvh.nodes.len() || c <= i {
-                return Err(format!("node {i}: child index {c} invalid"));
+            let children = n.children();
+            if n.child_count() < 2 || children.end as usize > bvh.nodes.len() || children.start as usize <= i {
+                return Err(format!("node {i}: children {children:?} invalid"));
             }
-            for child in [c, c + 1] {
+            for child in children.map(|c| c as usize) {
                 if !n.bounds.contains(&bvh.nodes[child].bounds) {
                     return Err(format!("node {i} does not enclose child {child}"));
                 }
