@@ -14,11 +14,12 @@ use rayon::prelude::*;
 const PARALLEL_GRAIN: usize = 1 << 12;
 /// Above this many primitives a node's binning itself runs in parallel.
 const PARALLEL_BINNING: usize = 1 << 16;
-pub const MAX_BINS: usize = 64;
+pub const MAX_BINS: usize = 32;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BinnedSahOptions {
-    /// Bins per axis (2 to 64; 16 to 32 is the usual choice).
+    /// Bins per axis (2 to 32; 16 to 32 is the usual choice). Nodes with fewer primitives
+    /// than bins use one bin per primitive (at least 4): as good, and much cheaper.
     pub bins: usize,
     pub leaf: LeafPolicy,
 }
@@ -134,7 +135,7 @@ impl Ctx<'_> {
             // All centroids coincide: no plane separates them; split by count if we must.
             return if self.leaf.must_split(n as u32) { Some(n / 2) } else { None };
         }
-        let nb = self.bins;
+        let nb = self.bins.min(n.max(4));
         let scale = Vec3::select(extent.cmpgt(Vec3::ZERO), Vec3::splat(nb as f32) / extent, Vec3::ZERO);
         let binner = Binner { min: centroids.min, scale, bins: nb };
         let bins = self.bin_prims(prims, &binner);

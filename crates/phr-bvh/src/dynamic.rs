@@ -7,14 +7,16 @@ use crate::aabb::Aabb;
 use crate::builder::PHR_AUX;
 use crate::lbvh::build_lbvh;
 use crate::node::Bvh;
-use crate::phr::{build_phr_with, Aux, PhrOptions};
+use crate::phr::{build_phr_with, AuxCounts, PhrOptions};
 use crate::refit::refit;
 use std::time::{Duration, Instant};
 
-/// The auxiliary tree and the render tree of an animated primitive set.
+/// The auxiliary tree of an animated primitive set, from which each frame's render tree is
+/// built.
 pub struct DynamicBvh {
     aux: Bvh,
-    render: Bvh,
+    /// The auxiliary tree's counts: its topology never changes, so neither do they.
+    counts: AuxCounts,
     options: PhrOptions,
 }
 
@@ -28,31 +30,28 @@ pub struct FrameTimings {
 }
 
 impl DynamicBvh {
-    /// Builds the auxiliary LBVH and a first render tree.
+    /// Builds the auxiliary LBVH over the primitives' first-frame boxes.
     pub fn new(boxes: &[Aabb], options: PhrOptions) -> Self {
         let aux = build_lbvh(boxes, PHR_AUX);
-        let (render, _) = build_phr_with(&Aux::new(&aux), &options);
-        Self { aux, render, options }
+        let counts = AuxCounts::new(&aux);
+        Self { aux, counts, options }
     }
 
-    /// Refits the auxiliary tree to `boxes` (same primitives, moved) and rebuilds the render
-    /// tree from it.
-    pub fn update(&mut self, boxes: &[Aabb]) -> FrameTimings {
+    /// Refits the auxiliary tree to `boxes` (same primitives, moved) and builds the render
+    /// tree from it with PHR.
+    pub fn update(&mut self, boxes: &[Aabb]) -> (Bvh, FrameTimings) {
         assert_eq!(boxes.len(), self.aux.prim_count(), "a dynamic scene keeps its primitives");
         let start = Instant::now();
         refit(&mut self.aux, boxes);
         let refit_time = start.elapsed();
-        let (render, stats) = build_phr_with(&Aux::new(&self.aux), &self.options);
-        self.render = render;
-        FrameTimings { refit: refit_time, build: start.elapsed() - refit_time, build_cost: stats.build_cost }
+        let (render, stats) = build_phr_with(&self.aux, &self.counts, &self.options);
+        let timings =
+            FrameTimings { refit: refit_time, build: start.elapsed() - refit_time, build_cost: stats.build_cost };
+        (render, timings)
     }
 
     pub fn set_options(&mut self, options: PhrOptions) {
         self.options = options;
-    }
-
-    pub fn render_bvh(&self) -> &Bvh {
-        &self.render
     }
 
     pub fn aux(&self) -> &Bvh {

@@ -28,9 +28,9 @@ fn hundred_animated_frames_stay_valid_and_exact() {
             })
             .collect();
         let boxes = triangle_boxes(&tris);
-        let timings = dynamic.update(&boxes);
+        let (bvh, timings) = dynamic.update(&boxes);
         assert!(timings.build_cost > 0);
-        let bvh = dynamic.render_bvh();
+        let bvh = &bvh;
         validate(bvh, &boxes, PhrOptions::FAST.leaf.max_leaf_size).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
         validate(dynamic.aux(), &boxes, 1).unwrap_or_else(|e| panic!("frame {frame}, aux: {e}"));
         let rays = random_rays(bvh.root_bounds(), 60, &mut rng);

@@ -1,6 +1,7 @@
 //! The same seed gives the same image for any thread count (README), bit for bit: each pixel's
 //! random numbers depend only on (seed, frame, pixel), and closest-hit ties do not depend on
-//! the tree. A different seed gives a different image.
+//! the tree, so every builder and branching factor gives the same image too. A different seed
+//! gives a different image.
 
 use glam::Vec3;
 use phr_bvh::Builder;
@@ -20,10 +21,14 @@ const MAX_DEPTH: u32 = 8;
 /// Builds and renders `scene` as `phr render` does, on a pool of `threads` threads; returns the
 /// film mean and the number of rays traced.
 fn render(scene: &Scene, threads: usize, seed: u64) -> (Vec<Vec3>, u64) {
+    render_with(scene, threads, seed, Builder::default())
+}
+
+fn render_with(scene: &Scene, threads: usize, seed: u64, builder: Builder) -> (Vec<Vec3>, u64) {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     pool.install(|| {
         let mut geometry = Geometry::new(scene);
-        geometry.build(|boxes| Builder::default().build(boxes));
+        geometry.build(|boxes| builder.build(boxes));
         let view = scene.view(None).expect("default view");
         let renderer = Renderer {
             tracer: PathTracer {
@@ -71,4 +76,17 @@ fn same_seed_same_image_for_any_thread_count() {
     let (other, _) = render(&scene, 2, 8);
     let differing = bits(&one).iter().zip(&bits(&other)).filter(|(a, b)| a != b).count();
     assert!(differing > one.len() / 4, "seed 8 vs 7: only {differing} pixels differ");
+}
+
+#[test]
+fn every_builder_gives_the_same_image() {
+    let scene = builtin::cornell_knot();
+    let (reference, _) = render(&scene, 2, 3);
+    let mut builders: Vec<Builder> =
+        ["phr-fast", "phr-hq", "phr:0.4,7", "sweep-sah", "binned-sah"].iter().map(|s| s.parse().unwrap()).collect();
+    builders.extend([4, 8, 16].map(|k| Builder::PHR_HQ.with_branching(k).unwrap()));
+    for builder in builders {
+        let (image, _) = render_with(&scene, 2, 3, builder);
+        assert!(bits(&image) == bits(&reference), "{builder} renders a different image than the LBVH");
+    }
 }

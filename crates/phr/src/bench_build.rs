@@ -1,11 +1,12 @@
-//! `phr bench-build`: LBVH build time and closest-hit throughput on every mesh of the shared
-//! scenes, with 1 and 2 threads (or the list given), as a table and a CSV.
+//! `phr bench-build`: every builder on every mesh of the shared scenes, with 1 and 2 threads
+//! (or the lists given): build time (the auxiliary LBVH and PHR shown apart), SAH cost with the
+//! constants (1, 1) and the thesis's (2, 1), PHR's `Σ |cut|`, and closest-hit throughput of
+//! one fixed ray set per mesh, as a table and a CSV.
 //!
-//! Build: median of `--repeats` builds of the auxiliary-free LBVH (leaves of 4), from the
-//! primitive boxes (computing the boxes is not counted). Trace: closest hit through the tree for
-//! the primary rays of a `--res`² image from the scene's framing camera, and for one
-//! diffuse bounce from each primary hit (cosine-distributed about the facing normal, from the
-//! offset hit point): coherent and incoherent rays.
+//! Build: median of `--repeats` builds from the primitive boxes. Rays: the primary rays of a
+//! `--res`² image from the mesh's framing camera, and one diffuse bounce from each primary hit
+//! (cosine-distributed about the facing normal): coherent and incoherent rays. The same rays
+//! are traced through every builder's tree.
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -23,7 +24,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// The meshes of `shared/scenes`, by path below it.
-const MESHES: &[&str] = &[
+pub const MESHES: &[&str] = &[
     "cornell_box/CornellBox-Original.obj",
     "bunny/bun_zipper.ply",
     "sponza/sponza.obj",
@@ -37,73 +38,101 @@ const MESHES: &[&str] = &[
 pub struct BenchBuildArgs {
     /// The shared scenes folder (default: found above the current directory).
     #[arg(long)]
-    scenes: Option<PathBuf>,
+    pub scenes: Option<PathBuf>,
     /// Builds per measurement; the median is reported.
-    #[arg(long, default_value_t = 7)]
-    repeats: usize,
+    #[arg(long, default_value_t = 5)]
+    pub repeats: usize,
     /// Thread counts to measure.
     #[arg(long, value_delimiter = ',', default_value = "1,2")]
-    threads: Vec<usize>,
+    pub threads: Vec<usize>,
     /// Side of the square image whose primary rays are traced.
     #[arg(long, default_value_t = 512)]
-    res: u32,
-    #[arg(long, default_value = "lbvh")]
-    builder: Builder,
-    /// Only meshes whose path contains this text.
-    #[arg(long)]
-    only: Option<String>,
+    pub res: u32,
+    /// Builders to compare.
+    #[arg(long, value_delimiter = ',', default_value = "lbvh,phr-fast,phr-hq,binned-sah,sweep-sah")]
+    pub builders: Vec<Builder>,
+    /// Branching factor for the PHR builders (2, 4, 8 or 16).
+    #[arg(long, default_value_t = 2)]
+    pub branching: u32,
+    /// Only meshes whose path contains one of these texts.
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
     /// CSV output.
     #[arg(long, default_value = "bench-build.csv")]
-    csv: PathBuf,
+    pub csv: PathBuf,
 }
 
 struct Row {
     mesh: String,
     triangles: usize,
     threads: usize,
+    builder: String,
+    aux_ms: f64,
     build_ms: f64,
-    mtris_per_s: f64,
-    sah: f64,
+    total_ms: f64,
+    sah_11: f64,
+    sah_21: f64,
+    build_cost: Option<u64>,
     primary_mrays: f64,
     diffuse_mrays: f64,
     diffuse_nodes_per_ray: f64,
     diffuse_prims_per_ray: f64,
 }
 
-pub fn run(args: &BenchBuildArgs) -> Result<()> {
-    let dir = match &args.scenes {
-        Some(d) => d.clone(),
+/// The shared scenes folder: the one given, or the one found from here.
+pub fn scenes_folder(given: &Option<PathBuf>) -> Result<PathBuf> {
+    match given {
+        Some(d) => Ok(d.clone()),
         None => phr_render::scene::json::scenes_dir(Path::new("."))
-            .context("cannot find the shared scenes folder; pass --scenes DIR or set PHR_SCENES_DIR")?,
-    };
+            .context("cannot find the shared scenes folder; pass --scenes DIR or set PHR_SCENES_DIR"),
+    }
+}
+
+/// One mesh as renderable geometry (every triangle with material 0).
+pub fn mesh_geometry(dir: &Path, name: &str) -> Result<(Geometry, Scene)> {
+    let data = load_mesh(&dir.join(name))?;
+    let n = data.triangles.len();
+    let mut scene = Scene::default();
+    scene.meshes.push(Mesh {
+        name: name.into(),
+        positions: data.positions,
+        triangles: data.triangles,
+        triangle_material: vec![0; n],
+    });
+    Ok((Geometry::new(&scene), scene))
+}
+
+pub fn run(args: &BenchBuildArgs) -> Result<()> {
+    let dir = scenes_folder(&args.scenes)?;
     if args.repeats == 0 || args.threads.contains(&0) {
         bail!("--repeats and --threads must be at least 1");
     }
-    let meshes: Vec<&str> =
-        MESHES.iter().copied().filter(|m| args.only.as_ref().is_none_or(|o| m.contains(o.as_str()))).collect();
-    let progress = ProgressBar::new((meshes.len() * args.threads.len()) as u64);
+    // The branching factor applies to the PHR builders; the others stay binary.
+    let builders: Vec<Builder> = args.builders.iter().map(|b| b.with_branching(args.branching).unwrap_or(*b)).collect();
+    let meshes: Vec<&str> = MESHES
+        .iter()
+        .copied()
+        .filter(|m| args.only.is_empty() || args.only.iter().any(|o| m.contains(o.as_str())))
+        .collect();
+    let progress = ProgressBar::new((meshes.len() * args.threads.len() * builders.len()) as u64);
     progress.set_style(
-        ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg}").expect("template").progress_chars("=> "),
+        ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg} (eta {eta})")
+            .expect("template")
+            .progress_chars("=> "),
     );
     let mut rows = Vec::new();
     for name in meshes {
-        progress.set_message(name.to_string());
-        let data = load_mesh(&dir.join(name))?;
-        let n = data.triangles.len();
-        let mut scene = Scene::default();
-        scene.meshes.push(Mesh {
-            name: name.into(),
-            positions: data.positions,
-            triangles: data.triangles,
-            triangle_material: vec![0; n],
-        });
-        let mut geometry = Geometry::new(&scene);
+        let (mut geometry, scene) = mesh_geometry(&dir, name)?;
         let camera = Camera::new(&scene.framing_camera(), args.res, args.res);
+        geometry.build(|b| Builder::default().build(b));
+        let rays = RaySet::new(&geometry, &camera, args.res);
         for &threads in &args.threads {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
-            let row = pool.install(|| measure(name, &mut geometry, &camera, args, threads));
-            rows.push(row);
-            progress.inc(1);
+            for builder in &builders {
+                progress.set_message(format!("{name}, {builder}, {threads} thread(s)"));
+                rows.push(pool.install(|| measure(name, &mut geometry, &rays, builder, args.repeats, threads)));
+                progress.inc(1);
+            }
         }
     }
     progress.finish_and_clear();
@@ -113,47 +142,83 @@ pub fn run(args: &BenchBuildArgs) -> Result<()> {
     Ok(())
 }
 
-fn measure(name: &str, geometry: &mut Geometry, camera: &Camera, args: &BenchBuildArgs, threads: usize) -> Row {
-    let mut times: Vec<f64> = (0..args.repeats)
+/// Primary rays and one diffuse bounce from each primary hit.
+pub struct RaySet {
+    pub primary: Vec<Ray>,
+    pub diffuse: Vec<Ray>,
+}
+
+impl RaySet {
+    pub fn new(geometry: &Geometry, camera: &Camera, res: u32) -> Self {
+        let primary: Vec<Ray> =
+            (0..res * res).map(|i| camera.ray((i % res) as f32 + 0.5, (i / res) as f32 + 0.5)).collect();
+        let diffuse = primary
+            .par_iter()
+            .enumerate()
+            .filter_map(|(i, ray)| {
+                let hit = geometry.intersect(ray)?;
+                let s = geometry.surface_point(ray, &hit);
+                let facing = if s.front { s.normal } else { -s.normal };
+                let dir = (facing + Pcg32::for_pixel(1, 0, i as u32).unit_vector()).normalize_or(facing);
+                Some(Ray::new(s.spawn_origin(dir), dir))
+            })
+            .collect();
+        Self { primary, diffuse }
+    }
+}
+
+fn measure(
+    name: &str,
+    geometry: &mut Geometry,
+    rays: &RaySet,
+    builder: &Builder,
+    repeats: usize,
+    threads: usize,
+) -> Row {
+    let mut reports: Vec<_> = (0..repeats)
         .map(|_| {
-            let start = Instant::now();
-            geometry.build(|b| args.builder.build(b));
-            start.elapsed().as_secs_f64() * 1e3
+            let report = builder.build_timed(&geometry.boxes);
+            (report.total_time(), report)
         })
         .collect();
-    times.sort_by(f64::total_cmp);
-    let build_ms = times[times.len() / 2];
-    let res = args.res;
-    let primary: Vec<Ray> =
-        (0..res * res).map(|i| camera.ray((i % res) as f32 + 0.5, (i / res) as f32 + 0.5)).collect();
-    let (primary_mrays, hits) = trace(geometry, &primary);
-    let diffuse: Vec<Ray> = primary
-        .iter()
-        .zip(&hits)
-        .enumerate()
-        .filter_map(|(i, (ray, hit))| {
-            let hit = hit.as_ref()?;
-            let s = geometry.surface_point(ray, hit);
-            let facing = if s.front { s.normal } else { -s.normal };
-            let dir = (facing + Pcg32::for_pixel(1, 0, i as u32).unit_vector()).normalize_or(facing);
-            Some(Ray::new(s.spawn_origin(dir), dir))
-        })
-        .collect();
-    let (diffuse_mrays, _) = trace(geometry, &diffuse);
-    let diffuse_work = traversal_work(geometry, &diffuse);
-    let triangles = geometry.triangles.len();
+    reports.sort_by_key(|r| r.0);
+    let report = reports.swap_remove(reports.len() / 2).1;
+    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    let (aux_ms, build_ms, total_ms) = (ms(report.aux_time), ms(report.build_time), ms(report.total_time()));
+    let build_cost = report.phr.map(|s| s.build_cost);
+    geometry.bvh = report.bvh;
+    let primary_mrays = throughput(geometry, &rays.primary);
+    let diffuse_mrays = throughput(geometry, &rays.diffuse);
+    let (diffuse_nodes_per_ray, diffuse_prims_per_ray) = traversal_work(geometry, &rays.diffuse);
     Row {
         mesh: name.into(),
-        triangles,
+        triangles: geometry.triangles.len(),
         threads,
+        builder: builder.to_string(),
+        aux_ms,
         build_ms,
-        mtris_per_s: triangles as f64 / build_ms / 1e3,
-        sah: sah_cost(&geometry.bvh, SahConstants::UNIT),
+        total_ms,
+        sah_11: sah_cost(&geometry.bvh, SahConstants::UNIT),
+        sah_21: sah_cost(&geometry.bvh, SahConstants::THESIS),
+        build_cost,
         primary_mrays,
         diffuse_mrays,
-        diffuse_nodes_per_ray: diffuse_work.0,
-        diffuse_prims_per_ray: diffuse_work.1,
+        diffuse_nodes_per_ray,
+        diffuse_prims_per_ray,
     }
+}
+
+/// Closest-hit Mrays/s over `rays` (chunks of 256 consecutive rays per task), best of 3.
+pub fn throughput(geometry: &Geometry, rays: &[Ray]) -> f64 {
+    let mut best = f64::INFINITY;
+    for _ in 0..3 {
+        let start = Instant::now();
+        let hits: usize =
+            rays.par_chunks(256).map(|c| c.iter().filter(|r| geometry.intersect(r).is_some()).count()).sum();
+        std::hint::black_box(hits);
+        best = best.min(start.elapsed().as_secs_f64());
+    }
+    rays.len() as f64 / best / 1e6
 }
 
 /// Mean nodes visited and primitives tested per ray.
@@ -170,40 +235,36 @@ fn traversal_work(geometry: &Geometry, rays: &[Ray]) -> (f64, f64) {
     (nodes as f64 / n, prims as f64 / n)
 }
 
-/// Closest hits of `rays` in parallel (chunks of 256 consecutive rays per task), best of 3.
-fn trace(geometry: &Geometry, rays: &[Ray]) -> (f64, Vec<Option<phr_render::geometry::Hit>>) {
-    let mut best = f64::INFINITY;
-    let mut hits = Vec::new();
-    for _ in 0..3 {
-        let start = Instant::now();
-        hits = rays.par_chunks(256).flat_map_iter(|c| c.iter().map(|r| geometry.intersect(r))).collect();
-        best = best.min(start.elapsed().as_secs_f64());
-    }
-    (rays.len() as f64 / best / 1e6, hits)
-}
-
 fn print_table(rows: &[Row]) {
     println!(
-        "{:<36} {:>8} {:>3} {:>9} {:>8} {:>7} {:>12} {:>12} {:>14}",
+        "{:<36} {:>8} {:>3} {:<12} {:>8} {:>9} {:>9} {:>7} {:>7} {:>9} {:>8} {:>8} {:>13}",
         "mesh",
         "tris",
         "thr",
+        "builder",
+        "aux ms",
         "build ms",
-        "Mtris/s",
-        "SAH",
-        "primary Mr/s",
-        "diffuse Mr/s",
-        "diffuse nodes/prims per ray"
+        "total ms",
+        "SAH11",
+        "SAH21",
+        "Σ|cut|",
+        "prim Mr/s",
+        "diff Mr/s",
+        "diff node/prim"
     );
     for r in rows {
         println!(
-            "{:<36} {:>8} {:>3} {:>9.2} {:>8.2} {:>7.2} {:>12.2} {:>12.2} {:>8.1} / {:.1}",
+            "{:<36} {:>8} {:>3} {:<12} {:>8.2} {:>9.2} {:>9.2} {:>7.2} {:>7.2} {:>9} {:>8.2} {:>8.2} {:>7.1}/{:<5.1}",
             r.mesh,
             r.triangles,
             r.threads,
+            r.builder,
+            r.aux_ms,
             r.build_ms,
-            r.mtris_per_s,
-            r.sah,
+            r.total_ms,
+            r.sah_11,
+            r.sah_21,
+            r.build_cost.map_or("-".into(), |c| c.to_string()),
             r.primary_mrays,
             r.diffuse_mrays,
             r.diffuse_nodes_per_ray,
@@ -217,18 +278,22 @@ fn write_csv(path: &Path, rows: &[Row]) -> std::io::Result<()> {
         let mut f = std::io::BufWriter::new(std::fs::File::create(tmp)?);
         writeln!(
             f,
-            "mesh,triangles,threads,build_ms,mtris_per_s,sah_cost,primary_mrays_per_s,diffuse_mrays_per_s,diffuse_nodes_per_ray,diffuse_prims_per_ray"
+            "mesh,triangles,threads,builder,aux_ms,build_ms,total_ms,sah_cost_1_1,sah_cost_2_1,build_cost,primary_mrays_per_s,diffuse_mrays_per_s,diffuse_nodes_per_ray,diffuse_prims_per_ray"
         )?;
         for r in rows {
             writeln!(
                 f,
-                "{},{},{},{:.3},{:.3},{:.4},{:.3},{:.3},{:.2},{:.2}",
+                "{},{},{},{},{:.3},{:.3},{:.3},{:.4},{:.4},{},{:.3},{:.3},{:.2},{:.2}",
                 r.mesh,
                 r.triangles,
                 r.threads,
+                r.builder,
+                r.aux_ms,
                 r.build_ms,
-                r.mtris_per_s,
-                r.sah,
+                r.total_ms,
+                r.sah_11,
+                r.sah_21,
+                r.build_cost.map_or(String::new(), |c| c.to_string()),
                 r.primary_mrays,
                 r.diffuse_mrays,
                 r.diffuse_nodes_per_ray,

@@ -12,18 +12,23 @@ pub struct InfoArgs {
     /// A scene file (.json), a mesh file, or `builtin`.
     #[arg(default_value = BUILTIN)]
     pub scene: String,
+    /// BVH builder: lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah, binned-sah.
     #[arg(long, default_value = "lbvh")]
     pub builder: Builder,
+    /// Children per node (PHR builders: 2, 4, 8 or 16).
+    #[arg(long, default_value_t = 2)]
+    pub branching: u32,
 }
 
 pub fn run(args: &InfoArgs) -> Result<()> {
     let load_start = Instant::now();
     let scene = open_scene(&args.scene)?;
     let load_ms = load_start.elapsed().as_secs_f64() * 1e3;
+    let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;
     let mut geometry = Geometry::new(&scene);
-    let start = Instant::now();
-    geometry.build(|b| args.builder.build(b));
-    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let report = builder.build_timed(&geometry.boxes);
+    let build = crate::render::describe_build(&builder, &report);
+    geometry.bvh = report.bvh;
     let b = scene.bounds();
     println!("scene       {}", args.scene);
     println!("load        {load_ms:.1} ms");
@@ -39,8 +44,8 @@ pub fn run(args: &InfoArgs) -> Result<()> {
     let s = &scene.settings;
     println!("settings    {}x{}, {} spp, max depth {}", s.width, s.height, s.spp, s.max_depth);
     let t = tree_stats(&geometry.bvh);
-    println!("builder     {} ({build_ms:.1} ms)", args.builder);
-    println!("nodes       {} ({} leaves)", t.nodes, t.leaves);
+    println!("builder     {build}");
+    println!("nodes       {} ({} leaves, up to {} children)", t.nodes, t.leaves, geometry.bvh.max_branching());
     println!("depth       max {}, mean leaf depth {:.1}", t.max_depth, t.mean_leaf_depth);
     println!("leaf size   max {}, mean {:.2}", t.max_leaf_size, t.mean_leaf_size);
     println!(
@@ -48,7 +53,7 @@ pub fn run(args: &InfoArgs) -> Result<()> {
         sah_cost(&geometry.bvh, SahConstants::UNIT),
         sah_cost(&geometry.bvh, SahConstants::THESIS)
     );
-    let check = validate(&geometry.bvh, &geometry.boxes, args.builder.max_leaf_size());
+    let check = validate(&geometry.bvh, &geometry.boxes, builder.max_leaf_size());
     println!("invariants  {}", check.map_or_else(|e| format!("BROKEN: {e}"), |()| "ok".into()));
     Ok(())
 }

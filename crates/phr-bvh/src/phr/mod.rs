@@ -21,10 +21,12 @@ pub mod cut;
 pub mod split;
 
 use crate::aabb::Aabb;
-use crate::node::Bvh;
+use crate::node::{Bvh, MAX_BRANCHING};
 use crate::sah::LeafPolicy;
 use crate::topdown::{assemble, Built, Piece};
-use split::{best_split, SweepScratch};
+use cut::{cut_bounds, cut_prims, AuxView, CutNode};
+use rayon::prelude::*;
+use split::{best_split, SplitScratch};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// What a cut node's weight counts in the sweep.
@@ -33,7 +35,8 @@ pub enum CutWeight {
     /// Auxiliary nodes in its subtree, the thesis's choice (default).
     #[default]
     AuxNodes,
-    /// Primitives in its subtree: the SAH's own measure.
+    /// Primitives in its subtree: the SAH's own measure. (For an auxiliary tree with one
+    /// primitive per leaf the two differ only by the constant: `nodes = 2 · prims - 1`.)
     Primitives,
 }
 
@@ -84,18 +87,19 @@ pub struct PhrStats {
     pub initial_cut: usize,
 }
 
-/// The auxiliary tree with the per-node counts PHR needs.
-pub struct Aux<'a> {
-    pub bvh: &'a Bvh,
+/// Per-node counts of the auxiliary tree. They depend on its topology only, so a dynamic
+/// scene computes them once and keeps them across refits.
+#[derive(Clone, Debug, Default)]
+pub struct AuxCounts {
     /// Primitives under each node.
     pub prim_count: Vec<u32>,
     /// Nodes in each node's subtree (itself included).
     pub node_count: Vec<u32>,
 }
 
-impl<'a> Aux<'a> {
-    /// Counts per node, in one reverse sweep (children always follow their parent).
-    pub fn new(bvh: &'a Bvh) -> Self {
+impl AuxCounts {
+    /// One reverse sweep: children always follow their parent in our layouts.
+    pub fn new(bvh: &Bvh) -> Self {
         let n = bvh.nodes.len();
         let mut prim_count = vec![0u32; n];
         let mut node_count = vec![1u32; n];
@@ -110,173 +114,205 @@ impl<'a> Aux<'a> {
                 }
             }
         }
-        Self { bvh, prim_count, node_count }
+        Self { prim_count, node_count }
     }
 }
 
 /// Above this many primitives a node's children are built as separate rayon tasks.
 const PARALLEL_GRAIN: u32 = 1 << 12;
 
+/// Builds a BVH from the auxiliary tree `aux` (any BVH of ours; the LBVH with one primitive
+/// per leaf is the intended input). The output indexes the same primitives.
+pub fn build_phr(aux: &Bvh, options: &PhrOptions) -> (Bvh, PhrStats) {
+    build_phr_with(aux, &AuxCounts::new(aux), options)
+}
+
+/// [`build_phr`] with the auxiliary tree's counts already computed.
+pub fn build_phr_with(aux: &Bvh, counts: &AuxCounts, options: &PhrOptions) -> (Bvh, PhrStats) {
+    if aux.nodes.is_empty() {
+        return (Bvh::default(), PhrStats::default());
+    }
+    let options = PhrOptions { branching: options.branching.clamp(2, MAX_BRANCHING as u32), ..*options };
+    let view = AuxView { bvh: aux, counts, weight: options.weight };
+    let scene_area = aux.nodes[0].bounds.surface_area();
+    let ctx = Ctx { aux: view, options, scene_area, build_cost: AtomicU64::new(0) };
+    let t0 = cut::threshold(scene_area, options.alpha, options.delta, 0);
+    let root_cut = cut::initial_cut(&view, t0, options.max_initial_cut);
+    let initial_cut = root_cut.len();
+    let built = ctx.build(root_cut, 0);
+    (assemble(built), PhrStats { build_cost: ctx.build_cost.into_inner(), initial_cut })
+}
+
+/// A node's children as ranges of its (reordered) cut; none for a leaf.
+#[derive(Clone, Copy)]
+struct Ranges {
+    ranges: [(u32, u32); MAX_BRANCHING],
+    len: usize,
+}
+
+impl Ranges {
+    const LEAF: Ranges = Ranges { ranges: [(0, 0); MAX_BRANCHING], len: 0 };
+
+    fn as_slice(&self) -> &[(u32, u32)] {
+        &self.ranges[..self.len]
+    }
+}
+
+/// Scratch space of one task.
+#[derive(Default)]
+struct Scratch {
+    /// This task's share of `Σ |cut|` (one shared atomic counter would bounce between cores).
+    build_cost: u64,
+    split: SplitScratch,
+    cut_stack: Vec<CutNode>,
+    index_stack: Vec<u32>,
+}
+
 struct Ctx<'a> {
-    aux: &'a Aux<'a>,
+    aux: AuxView<'a>,
     options: PhrOptions,
     scene_area: f32,
     build_cost: AtomicU64,
 }
 
-/// Builds a BVH from the auxiliary tree `aux_bvh` (any BVH of ours; the LBVH with one
-/// primitive per leaf is the intended input). The output indexes the same primitives.
-pub fn build_phr(aux_bvh: &Bvh, options: &PhrOptions) -> (Bvh, PhrStats) {
-    let aux = Aux::new(aux_bvh);
-    build_phr_with(&aux, options)
-}
-
-/// [`build_phr`] with precomputed counts (they stay valid while only the bounds change, as in
-/// a dynamic scene's refit-then-rebuild loop).
-pub fn build_phr_with(aux: &Aux, options: &PhrOptions) -> (Bvh, PhrStats) {
-    if aux.bvh.nodes.is_empty() {
-        return (Bvh::default(), PhrStats::default());
-    }
-    let options = PhrOptions { branching: options.branching.clamp(2, crate::node::MAX_BRANCHING as u32), ..*options };
-    let scene_area = aux.bvh.nodes[0].bounds.surface_area();
-    let ctx = Ctx { aux, options, scene_area, build_cost: AtomicU64::new(0) };
-    let t0 = cut::threshold(scene_area, options.alpha, options.delta, 0);
-    let root_cut = cut::initial_cut(aux, t0, options.max_initial_cut);
-    let initial_cut = root_cut.len();
-    let built = ctx.build(root_cut, 0);
-    let bvh = assemble(built);
-    (bvh, PhrStats { build_cost: ctx.build_cost.into_inner(), initial_cut })
-}
-
-/// How a node's cut is divided among its children.
-enum Partition {
-    Leaf,
-    Children(Vec<Vec<u32>>),
-}
-
 impl Ctx<'_> {
-    fn prims(&self, cut: &[u32]) -> u32 {
-        cut.iter().map(|&i| self.aux.prim_count[i as usize]).sum()
+    fn threshold(&self, depth: u32) -> f32 {
+        cut::threshold(self.scene_area, self.options.alpha, self.options.delta, depth)
     }
 
     /// Builds the subtree of `cut` at `depth`: in parallel while it is large, else as a piece.
-    fn build(&self, cut: Vec<u32>, depth: u32) -> Built {
-        if self.prims(&cut) <= PARALLEL_GRAIN {
+    fn build(&self, mut cut: Vec<CutNode>, depth: u32) -> Built {
+        if cut_prims(&cut) <= PARALLEL_GRAIN {
             let mut piece = Piece::new();
             self.build_piece(&mut piece, cut, depth);
             return Built::Piece(piece);
         }
-        let mut scratch = SweepScratch::default();
-        let bounds = cut::cut_bounds(self.aux, &cut);
-        match self.partition(cut, bounds, &mut scratch) {
-            (cut, Partition::Leaf) => {
-                let mut piece = Piece::new();
-                piece.set_leaf(0, bounds, self.leaf_prims(&cut));
-                Built::Piece(piece)
-            }
-            (_, Partition::Children(children)) => {
-                use rayon::prelude::*;
-                let children =
-                    children.into_par_iter().map(|c| self.build(self.refine(c, depth + 1), depth + 1)).collect();
-                Built::Split { bounds, children }
-            }
+        let mut scratch = Scratch::default();
+        let (bounds, ranges) = self.partition(&mut cut, 0, &mut scratch);
+        self.build_cost.fetch_add(scratch.build_cost, Ordering::Relaxed);
+        if ranges.len == 0 {
+            let mut piece = Piece::new();
+            let prims = self.gather(&cut, &mut scratch);
+            piece.set_leaf(0, bounds, prims);
+            return Built::Piece(piece);
         }
+        let t = self.threshold(depth + 1);
+        let child_cuts: Vec<Vec<CutNode>> = ranges
+            .as_slice()
+            .iter()
+            .map(|&(a, b)| {
+                let mut child = Vec::with_capacity((b - a) as usize * 2);
+                for &n in &cut[a as usize..b as usize] {
+                    self.aux.refine_into(n, t, &mut child, &mut scratch.cut_stack);
+                }
+                child
+            })
+            .collect();
+        drop(cut);
+        let children = child_cuts.into_par_iter().map(|c| self.build(c, depth + 1)).collect();
+        Built::Split { bounds, children }
     }
 
     /// Builds a subtree sequentially into `piece`, its root at slot 0.
-    fn build_piece(&self, piece: &mut Piece, cut: Vec<u32>, depth: u32) {
-        let mut scratch = SweepScratch::default();
-        let mut stack = vec![(cut, depth, 0u32)];
-        while let Some((cut, depth, slot)) = stack.pop() {
-            let bounds = cut::cut_bounds(self.aux, &cut);
-            match self.partition(cut, bounds, &mut scratch) {
-                (cut, Partition::Leaf) => piece.set_leaf(slot, bounds, self.leaf_prims(&cut)),
-                (_, Partition::Children(children)) => {
-                    let k = children.len() as u32;
-                    let first = piece.alloc_children(k);
-                    piece.set_interior(slot, bounds, first, k);
-                    for (i, c) in children.into_iter().enumerate().rev() {
-                        stack.push((self.refine(c, depth + 1), depth + 1, first + i as u32));
-                    }
-                }
-            }
-        }
-    }
-
-    fn refine(&self, cut: Vec<u32>, depth: u32) -> Vec<u32> {
-        let t = cut::threshold(self.scene_area, self.options.alpha, self.options.delta, depth);
-        cut::refine(self.aux, cut, t)
-    }
-
-    /// Decides leaf or children for a node with `cut` and `bounds`; counts the cut's size
-    /// into the build cost. Returns the (possibly opened) cut for leaves.
-    fn partition(&self, mut cut: Vec<u32>, bounds: Aabb, scratch: &mut SweepScratch) -> (Vec<u32>, Partition) {
-        self.build_cost.fetch_add(cut.len() as u64, Ordering::Relaxed);
-        open_singletons(self.aux, &mut cut);
-        if cut.len() < 2 {
-            return (cut, Partition::Leaf);
-        }
-        let n = self.prims(&cut);
-        let area = bounds.surface_area();
-        let first = best_split(self.aux, &cut, self.options.weight, scratch);
-        if !self.options.leaf.must_split(n) && self.options.leaf.prefers_leaf(n, area, first.area_count) {
-            return (cut, Partition::Leaf);
-        }
-        let mut children = vec![first.left, first.right];
-        // Multi-BVH: split the largest child cut again while that helps.
-        let mut final_children = Vec::new();
-        while children.len() + final_children.len() < self.options.branching as usize && !children.is_empty() {
-            let largest = (0..children.len())
-                .max_by(|&a, &b| {
-                    let area = |c: &Vec<u32>| cut::cut_bounds(self.aux, c).surface_area();
-                    area(&children[a]).total_cmp(&area(&children[b]))
-                })
-                .unwrap_or(0);
-            let mut c = children.swap_remove(largest);
-            open_singletons(self.aux, &mut c);
-            let n = self.prims(&c);
-            if c.len() < 2 {
-                final_children.push(c);
+    ///
+    /// All cuts live in one vector used as a stack: the cut of the node being processed is
+    /// always its top segment `pool[start..]`; its children's refined cuts replace it there,
+    /// and are processed last first.
+    fn build_piece(&self, piece: &mut Piece, cut: Vec<CutNode>, depth: u32) {
+        let mut scratch = Scratch::default();
+        let mut pool = cut;
+        let mut tasks = vec![(0usize, depth, 0u32)];
+        while let Some((start, depth, slot)) = tasks.pop() {
+            debug_assert!(start < pool.len());
+            let (bounds, ranges) = self.partition(&mut pool, start, &mut scratch);
+            if ranges.len == 0 {
+                let prims = self.gather(&pool[start..], &mut scratch);
+                piece.set_leaf(slot, bounds, prims);
+                pool.truncate(start);
                 continue;
             }
-            let area = cut::cut_bounds(self.aux, &c).surface_area();
-            let s = best_split(self.aux, &c, self.options.weight, scratch);
-            if self.options.leaf.must_split(n) || !self.options.leaf.prefers_leaf(n, area, s.area_count) {
-                children.push(s.left);
-                children.push(s.right);
-            } else {
-                final_children.push(c);
+            let k = ranges.len as u32;
+            let first = piece.alloc_children(k);
+            piece.set_interior(slot, bounds, first, k);
+            let t = self.threshold(depth + 1);
+            let end = pool.len();
+            let mut child_starts = [0usize; MAX_BRANCHING];
+            for (i, &(a, b)) in ranges.as_slice().iter().enumerate() {
+                child_starts[i] = pool.len() - (end - start);
+                for j in start + a as usize..start + b as usize {
+                    let n = pool[j];
+                    self.aux.refine_into(n, t, &mut pool, &mut scratch.cut_stack);
+                }
+            }
+            // The parent's cut is dead: move the children's cuts down over it.
+            pool.copy_within(end.., start);
+            pool.truncate(pool.len() - (end - start));
+            for (i, &child_start) in child_starts[..k as usize].iter().enumerate() {
+                tasks.push((child_start, depth + 1, first + i as u32));
             }
         }
-        children.extend(final_children);
-        (Vec::new(), Partition::Children(children))
+        self.build_cost.fetch_add(scratch.build_cost, Ordering::Relaxed);
+    }
+
+    /// Decides leaf or children for the node whose cut is `pool[start..]`, and counts the
+    /// cut into the build cost. Returns the node's box and its children as ranges of the
+    /// (reordered) cut, relative to `start`.
+    fn partition(&self, pool: &mut Vec<CutNode>, start: usize, scratch: &mut Scratch) -> (Aabb, Ranges) {
+        scratch.build_cost += (pool.len() - start) as u64;
+        // A cut of one interior node is opened: a node with a single child would only add a
+        // traversal step, and keeping it whole is the thesis code's giant-leaf defect.
+        while pool.len() - start == 1 && !self.aux.is_leaf(&pool[start]) {
+            let n = pool.pop().expect("non-empty");
+            self.aux.push_children(&n, pool);
+        }
+        let cut = &mut pool[start..];
+        let bounds = cut_bounds(cut);
+        if cut.len() < 2 {
+            return (bounds, Ranges::LEAF);
+        }
+        let leaf = &self.options.leaf;
+        let n = cut_prims(cut);
+        let first = best_split(cut, &mut scratch.split);
+        if !leaf.must_split(n) && leaf.prefers_leaf(n, bounds.surface_area(), first.area_count) {
+            return (bounds, Ranges::LEAF);
+        }
+        let mut ranges = Ranges::LEAF;
+        ranges.ranges[0] = (0, first.left_len as u32);
+        ranges.ranges[1] = (first.left_len as u32, cut.len() as u32);
+        ranges.len = 2;
+        // Multi-BVH: split the largest child cut again while that helps.
+        let mut done = [false; MAX_BRANCHING];
+        while ranges.len < self.options.branching as usize {
+            let candidate = (0..ranges.len)
+                .filter(|&i| !done[i] && ranges.ranges[i].1 - ranges.ranges[i].0 >= 2)
+                .map(|i| {
+                    let (a, b) = ranges.ranges[i];
+                    (cut_bounds(&cut[a as usize..b as usize]).surface_area(), i)
+                })
+                .max_by(|x, y| x.0.total_cmp(&y.0).then(y.1.cmp(&x.1)));
+            let Some((area, i)) = candidate else { break };
+            let (a, b) = ranges.ranges[i];
+            let sub = &mut cut[a as usize..b as usize];
+            let n = cut_prims(sub);
+            let s = best_split(sub, &mut scratch.split);
+            if leaf.must_split(n) || !leaf.prefers_leaf(n, area, s.area_count) {
+                let mid = a + s.left_len as u32;
+                ranges.ranges[i] = (a, mid);
+                ranges.ranges[ranges.len] = (mid, b);
+                ranges.len += 1;
+            } else {
+                done[i] = true;
+            }
+        }
+        (bounds, ranges)
     }
 
     /// The primitives under the cut's nodes.
-    fn leaf_prims(&self, cut: &[u32]) -> Vec<u32> {
-        let bvh = self.aux.bvh;
-        let mut prims = Vec::new();
-        let mut stack: Vec<u32> = cut.to_vec();
-        while let Some(i) = stack.pop() {
-            let n = &bvh.nodes[i as usize];
-            if n.is_leaf() {
-                prims.extend_from_slice(bvh.leaf_prims(n));
-            } else {
-                stack.extend(n.children());
-            }
+    fn gather(&self, cut: &[CutNode], scratch: &mut Scratch) -> Vec<u32> {
+        let mut prims = Vec::with_capacity(cut_prims(cut) as usize);
+        for n in cut {
+            self.aux.gather_prims(n, &mut prims, &mut scratch.index_stack);
         }
         prims
-    }
-}
-
-/// A cut of one interior node is opened (repeatedly): a node with a single child cut would
-/// only add a traversal step, and keeping it whole is the thesis code's giant-leaf defect.
-fn open_singletons(aux: &Aux, cut: &mut Vec<u32>) {
-    while cut.len() == 1 {
-        let n = &aux.bvh.nodes[cut[0] as usize];
-        if n.is_leaf() {
-            return;
-        }
-        *cut = n.children().collect();
     }
 }

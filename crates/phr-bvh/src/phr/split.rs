@@ -5,60 +5,67 @@
 //! On each axis the nodes are sorted by the centre of their box; one sweep from the right
 //! stores the area of every suffix's union, one from the left evaluates
 //! `A_L · n_L + A_R · n_R` at every position. `n` is the node's weight: the number of auxiliary
-//! nodes under it (the thesis's choice, [`CutWeight::AuxNodes`]) or of primitives
-//! ([`CutWeight::Primitives`]). Whether to split at all is decided by the shared
-//! [`crate::sah::LeafPolicy`] on primitive counts, as for every other builder.
+//! nodes under it (the thesis's choice) or of primitives (see [`super::CutWeight`]). Whether to
+//! split at all is decided by the shared [`crate::sah::LeafPolicy`] on primitive counts, as for
+//! every other builder. The cut is reordered and split in place: no allocation.
 
-use super::{Aux, CutWeight};
+use super::cut::CutNode;
 use crate::aabb::Aabb;
 
-/// A split of a cut into two non-empty halves.
+/// The chosen split of a cut slice: after [`best_split`] the slice is sorted along the split
+/// axis and `left_len` nodes go left.
 pub struct CutSplit {
-    pub left: Vec<u32>,
-    pub right: Vec<u32>,
+    pub left_len: usize,
     /// `Σ A_child · N_child` over both halves, with N in primitives.
     pub area_count: f32,
 }
 
-/// Scratch vectors reused across splits of one task.
+/// Scratch space of [`best_split`], reused across calls.
 #[derive(Default)]
-pub struct SweepScratch {
-    sorted: Vec<(f32, u32)>,
-    best_sorted: Vec<(f32, u32)>,
+pub struct SplitScratch {
     right_area: Vec<f32>,
+    order: Vec<(f32, u32)>,
+    best_order: Vec<(f32, u32)>,
+    reordered: Vec<CutNode>,
 }
 
-/// The best full-sweep split of `cut` (at least two nodes), on all three axes.
-pub fn best_split(aux: &Aux, cut: &[u32], weight: CutWeight, scratch: &mut SweepScratch) -> CutSplit {
-    debug_assert!(cut.len() >= 2);
+/// Finds the best full-sweep split of `cut` (at least two nodes) over the three axes and
+/// leaves `cut` ordered along the best axis.
+///
+/// Sorting moves 8-byte (key, position) pairs, not the nodes; the nodes are permuted once,
+/// at the end. A cut of two nodes has only one split and skips all of it.
+pub fn best_split(cut: &mut [CutNode], scratch: &mut SplitScratch) -> CutSplit {
     let m = cut.len();
-    let w = |i: u32| -> f32 {
-        match weight {
-            CutWeight::AuxNodes => aux.node_count[i as usize] as f32,
-            CutWeight::Primitives => aux.prim_count[i as usize] as f32,
-        }
+    debug_assert!(m >= 2);
+    let side = |half: &[CutNode]| {
+        let b = half.iter().fold(Aabb::EMPTY, |b, n| b.union(n.bounds));
+        b.surface_area() * half.iter().map(|n| n.prims).sum::<u32>() as f32
     };
-    let bounds = |i: u32| aux.bvh.nodes[i as usize].bounds;
-    let total_weight: f32 = cut.iter().map(|&i| w(i)).sum();
-    let mut best = (f32::INFINITY, 0usize);
+    if m == 2 {
+        return CutSplit { left_len: 1, area_count: side(&cut[..1]) + side(&cut[1..]) };
+    }
+    let total_weight: f32 = cut.iter().map(|n| n.weight).sum();
+    scratch.right_area.resize(m, 0.0);
+    let mut best = (f32::INFINITY, m / 2);
     let mut found = false;
     for axis in 0..3 {
-        scratch.sorted.clear();
-        scratch.sorted.extend(cut.iter().map(|&i| (bounds(i).center()[axis], i)));
-        scratch.sorted.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        scratch.right_area.resize(m, 0.0);
+        scratch.order.clear();
+        scratch.order.extend(cut.iter().enumerate().map(|(i, n)| (n.bounds.min[axis] + n.bounds.max[axis], i as u32)));
+        scratch
+            .order
+            .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(cut[a.1 as usize].index.cmp(&cut[b.1 as usize].index)));
+        let order = &scratch.order;
         let mut acc = Aabb::EMPTY;
         for k in (1..m).rev() {
-            acc = acc.union(bounds(scratch.sorted[k].1));
+            acc = acc.union(cut[order[k].1 as usize].bounds);
             scratch.right_area[k] = acc.surface_area();
         }
-        let mut left = Aabb::EMPTY;
-        let mut left_weight = 0.0;
+        let (mut left, mut left_weight) = (Aabb::EMPTY, 0.0);
         let mut improved = false;
         for k in 1..m {
-            let node = scratch.sorted[k - 1].1;
-            left = left.union(bounds(node));
-            left_weight += w(node);
+            let n = &cut[order[k - 1].1 as usize];
+            left = left.union(n.bounds);
+            left_weight += n.weight;
             let cost = left.surface_area() * left_weight + scratch.right_area[k] * (total_weight - left_weight);
             if cost < best.0 {
                 best = (cost, k);
@@ -66,23 +73,15 @@ pub fn best_split(aux: &Aux, cut: &[u32], weight: CutWeight, scratch: &mut Sweep
             }
         }
         if improved {
-            std::mem::swap(&mut scratch.sorted, &mut scratch.best_sorted);
+            std::mem::swap(&mut scratch.order, &mut scratch.best_order);
             found = true;
         }
     }
-    if !found {
-        // Only non-finite costs (impossible with finite boxes): split by position.
-        scratch.best_sorted.clear();
-        scratch.best_sorted.extend(cut.iter().map(|&i| (0.0, i)));
-        best.1 = m / 2;
+    if found {
+        scratch.reordered.clear();
+        scratch.reordered.extend(scratch.best_order.iter().map(|&(_, i)| cut[i as usize]));
+        cut.copy_from_slice(&scratch.reordered);
     }
-    let k = best.1.max(1);
-    let left: Vec<u32> = scratch.best_sorted[..k].iter().map(|p| p.1).collect();
-    let right: Vec<u32> = scratch.best_sorted[k..].iter().map(|p| p.1).collect();
-    let side = |half: &[u32]| {
-        let b = half.iter().fold(Aabb::EMPTY, |b, &i| b.union(bounds(i)));
-        b.surface_area() * half.iter().map(|&i| aux.prim_count[i as usize]).sum::<u32>() as f32
-    };
-    let area_count = side(&left) + side(&right);
-    CutSplit { left, right, area_count }
+    let left_len = best.1;
+    CutSplit { left_len, area_count: side(&cut[..left_len]) + side(&cut[left_len..]) }
 }
