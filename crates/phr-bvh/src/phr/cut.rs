@@ -42,9 +42,9 @@ impl AuxView<'_> {
     #[inline]
     pub fn cut_node(&self, index: u32) -> CutNode {
         let i = index as usize;
-        let prims = self.counts.prim_count[i];
+        let [prims, nodes] = self.counts.counts[i];
         let weight = match self.weight {
-            CutWeight::AuxNodes => self.counts.node_count[i] as f32,
+            CutWeight::AuxNodes => nodes as f32,
             CutWeight::Primitives => prims as f32,
         };
         CutNode { bounds: self.bvh.nodes[i].bounds, index, prims, weight }

@@ -91,30 +91,29 @@ pub struct PhrStats {
 /// scene computes them once and keeps them across refits.
 #[derive(Clone, Debug, Default)]
 pub struct AuxCounts {
-    /// Primitives under each node.
-    pub prim_count: Vec<u32>,
-    /// Nodes in each node's subtree (itself included).
-    pub node_count: Vec<u32>,
+    /// Per node: primitives under it, and nodes in its subtree (itself included). One array
+    /// of pairs, so that opening a node costs one cache miss for both.
+    pub counts: Vec<[u32; 2]>,
 }
 
 impl AuxCounts {
     /// One reverse sweep: children always follow their parent in our layouts.
     pub fn new(bvh: &Bvh) -> Self {
         let n = bvh.nodes.len();
-        let mut prim_count = vec![0u32; n];
-        let mut node_count = vec![1u32; n];
+        let mut counts = vec![[0u32, 1u32]; n];
         for i in (0..n).rev() {
             let node = &bvh.nodes[i];
             if node.is_leaf() {
-                prim_count[i] = node.count;
+                counts[i][0] = node.count;
             } else {
                 for c in node.children() {
-                    prim_count[i] += prim_count[c as usize];
-                    node_count[i] += node_count[c as usize];
+                    let [p, k] = counts[c as usize];
+                    counts[i][0] += p;
+                    counts[i][1] += k;
                 }
             }
         }
-        Self { prim_count, node_count }
+        Self { counts }
     }
 }
 
@@ -215,15 +214,16 @@ impl Ctx<'_> {
 
     /// Builds a subtree sequentially into `piece`, its root at slot 0.
     ///
-    /// All cuts live in one vector used as a stack: the cut of the node being processed is
-    /// always its top segment `pool[start..]`; its children's refined cuts replace it there,
-    /// and are processed last first.
+    /// All cuts live in one vector used as a stack. Children's refined cuts are pushed above
+    /// their parent's and processed last first; when a task is popped, everything above its
+    /// segment is the dead cuts of finished nodes and is dropped, so its cut is the top
+    /// segment `pool[start..]`.
     fn build_piece(&self, piece: &mut Piece, cut: Vec<CutNode>, depth: u32) {
         let mut scratch = Scratch::default();
         let mut pool = cut;
-        let mut tasks = vec![(0usize, depth, 0u32)];
-        while let Some((start, depth, slot)) = tasks.pop() {
-            debug_assert!(start < pool.len());
+        let mut tasks = vec![(0usize, pool.len(), depth, 0u32)];
+        while let Some((start, end, depth, slot)) = tasks.pop() {
+            pool.truncate(end);
             let (bounds, ranges) = self.partition(&mut pool, start, &mut scratch);
             if ranges.len == 0 {
                 let prims = self.gather(&pool[start..], &mut scratch);
@@ -235,20 +235,13 @@ impl Ctx<'_> {
             let first = piece.alloc_children(k);
             piece.set_interior(slot, bounds, first, k);
             let t = self.threshold(depth + 1);
-            let end = pool.len();
-            let mut child_starts = [0usize; MAX_BRANCHING];
             for (i, &(a, b)) in ranges.as_slice().iter().enumerate() {
-                child_starts[i] = pool.len() - (end - start);
+                let child_start = pool.len();
                 for j in start + a as usize..start + b as usize {
                     let n = pool[j];
                     self.aux.refine_into(n, t, &mut pool, &mut scratch.cut_stack);
                 }
-            }
-            // The parent's cut is dead: move the children's cuts down over it.
-            pool.copy_within(end.., start);
-            pool.truncate(pool.len() - (end - start));
-            for (i, &child_start) in child_starts[..k as usize].iter().enumerate() {
-                tasks.push((child_start, depth + 1, first + i as u32));
+                tasks.push((child_start, pool.len(), depth + 1, first + i as u32));
             }
         }
         self.build_cost.fetch_add(scratch.build_cost, Ordering::Relaxed);

@@ -24,15 +24,16 @@ pub struct CutSplit {
 #[derive(Default)]
 pub struct SplitScratch {
     right_area: Vec<f32>,
-    order: Vec<(f32, u32)>,
-    best_order: Vec<(f32, u32)>,
+    order: Vec<u64>,
+    best_order: Vec<u64>,
     reordered: Vec<CutNode>,
 }
 
 /// Finds the best full-sweep split of `cut` (at least two nodes) over the three axes and
 /// leaves `cut` ordered along the best axis.
 ///
-/// Sorting moves 8-byte (key, position) pairs, not the nodes; the nodes are permuted once,
+/// Sorting moves 8-byte integer keys (the centroid coordinate's order-preserving bits above
+/// the node's position, so ties go by position), not the nodes; the nodes are permuted once,
 /// at the end. A cut of two nodes has only one split and skips all of it.
 pub fn best_split(cut: &mut [CutNode], scratch: &mut SplitScratch) -> CutSplit {
     let m = cut.len();
@@ -50,20 +51,23 @@ pub fn best_split(cut: &mut [CutNode], scratch: &mut SplitScratch) -> CutSplit {
     let mut found = false;
     for axis in 0..3 {
         scratch.order.clear();
-        scratch.order.extend(cut.iter().enumerate().map(|(i, n)| (n.bounds.min[axis] + n.bounds.max[axis], i as u32)));
-        scratch
-            .order
-            .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(cut[a.1 as usize].index.cmp(&cut[b.1 as usize].index)));
+        scratch.order.extend(
+            cut.iter()
+                .enumerate()
+                .map(|(i, n)| (ordered_bits(n.bounds.min[axis] + n.bounds.max[axis]) << 32) | i as u64),
+        );
+        scratch.order.sort_unstable();
         let order = &scratch.order;
+        let at = |k: usize| &cut[(order[k] & 0xffff_ffff) as usize];
         let mut acc = Aabb::EMPTY;
         for k in (1..m).rev() {
-            acc = acc.union(cut[order[k].1 as usize].bounds);
+            acc = acc.union(at(k).bounds);
             scratch.right_area[k] = acc.surface_area();
         }
         let (mut left, mut left_weight) = (Aabb::EMPTY, 0.0);
         let mut improved = false;
         for k in 1..m {
-            let n = &cut[order[k - 1].1 as usize];
+            let n = at(k - 1);
             left = left.union(n.bounds);
             left_weight += n.weight;
             let cost = left.surface_area() * left_weight + scratch.right_area[k] * (total_weight - left_weight);
@@ -79,9 +83,17 @@ pub fn best_split(cut: &mut [CutNode], scratch: &mut SplitScratch) -> CutSplit {
     }
     if found {
         scratch.reordered.clear();
-        scratch.reordered.extend(scratch.best_order.iter().map(|&(_, i)| cut[i as usize]));
+        scratch.reordered.extend(scratch.best_order.iter().map(|&key| cut[(key & 0xffff_ffff) as usize]));
         cut.copy_from_slice(&scratch.reordered);
     }
     let left_len = best.1;
     CutSplit { left_len, area_count: side(&cut[..left_len]) + side(&cut[left_len..]) }
+}
+
+/// The bits of a float, mapped so that integer order is float order (negative floats have
+/// their bits flipped, positive ones their sign bit set).
+#[inline(always)]
+fn ordered_bits(x: f32) -> u64 {
+    let b = x.to_bits();
+    (if b & 0x8000_0000 != 0 { !b } else { b | 0x8000_0000 }) as u64
 }
