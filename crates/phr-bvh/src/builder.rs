@@ -2,6 +2,7 @@
 //! benchmarks can loop over them.
 //!
 //! Names: `lbvh`, `phr-fast` (α = 0.5, δ = 6), `phr-hq` (α = 0.55, δ = 9), `phr:α,δ`,
+//! `phr-thesis:α,δ` (PHR with the thesis's auxiliary-node weights and initial-cut cap),
 //! `sweep-sah`, `binned-sah`.
 
 use crate::aabb::Aabb;
@@ -106,7 +107,9 @@ impl fmt::Display for Builder {
         match self {
             Builder::Lbvh(_) => write!(f, "lbvh"),
             Builder::Phr(o) => {
-                let name = if (o.alpha, o.delta) == (PhrOptions::FAST.alpha, PhrOptions::FAST.delta) {
+                let name = if *o == (PhrOptions { branching: o.branching, ..PhrOptions::thesis(o.alpha, o.delta) }) {
+                    format!("phr-thesis:{},{}", o.alpha, o.delta)
+                } else if (o.alpha, o.delta) == (PhrOptions::FAST.alpha, PhrOptions::FAST.delta) {
                     "phr-fast".to_string()
                 } else if (o.alpha, o.delta) == (PhrOptions::HQ.alpha, PhrOptions::HQ.delta) {
                     "phr-hq".to_string()
@@ -130,12 +133,18 @@ impl FromStr for Builder {
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let s = s.trim().to_ascii_lowercase();
-        if let Some(params) = s.strip_prefix("phr:") {
-            let parse = |v: &str| v.trim().parse::<f32>().ok().filter(|x| x.is_finite() && *x >= 0.0);
-            return match params.split_once(',').map(|(a, d)| (parse(a), parse(d))) {
-                Some((Some(alpha), Some(delta))) => Ok(Builder::Phr(PhrOptions::with(alpha, delta))),
-                _ => Err(format!("\"{s}\": expected phr:ALPHA,DELTA with two non-negative numbers, e.g. phr:0.5,6")),
-            };
+        for (prefix, make) in
+            [("phr:", PhrOptions::with as fn(f32, f32) -> PhrOptions), ("phr-thesis:", PhrOptions::thesis)]
+        {
+            if let Some(params) = s.strip_prefix(prefix) {
+                let parse = |v: &str| v.trim().parse::<f32>().ok().filter(|x| x.is_finite() && *x >= 0.0);
+                return match params.split_once(',').map(|(a, d)| (parse(a), parse(d))) {
+                    Some((Some(alpha), Some(delta))) => Ok(Builder::Phr(make(alpha, delta))),
+                    _ => Err(format!(
+                        "\"{s}\": expected {prefix}ALPHA,DELTA with two non-negative numbers, e.g. {prefix}0.5,6"
+                    )),
+                };
+            }
         }
         match s.as_str() {
             "lbvh" => Ok(Builder::Lbvh(LbvhOptions::default())),
@@ -144,7 +153,7 @@ impl FromStr for Builder {
             "sweep-sah" => Ok(Builder::SweepSah(SweepSahOptions::default())),
             "binned-sah" => Ok(Builder::BinnedSah(BinnedSahOptions::default())),
             other => Err(format!(
-                "unknown builder \"{other}\" (available: lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah, binned-sah)"
+                "unknown builder \"{other}\" (available: lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, phr-thesis:ALPHA,DELTA, sweep-sah, binned-sah)"
             )),
         }
     }

@@ -19,8 +19,9 @@ fn all_builders() -> Vec<Builder> {
         let (alpha, delta) = (0.3 + 0.4 * rng.f32(), 4.0 + 8.0 * rng.f32());
         builders.push(Builder::Phr(PhrOptions::with(alpha, delta)));
     }
-    builders.push(Builder::Phr(PhrOptions { weight: CutWeight::Primitives, ..PhrOptions::HQ }));
+    builders.push(Builder::Phr(PhrOptions { weight: CutWeight::AuxNodes, ..PhrOptions::HQ }));
     builders.push(Builder::Phr(PhrOptions { max_initial_cut: Some(16), ..PhrOptions::HQ }));
+    builders.push(Builder::Phr(PhrOptions::thesis(0.5, 6.0)));
     builders
 }
 
@@ -117,4 +118,7 @@ fn builder_names_parse() {
     assert!("octree".parse::<Builder>().is_err());
     assert!(Builder::default().with_branching(4).is_err());
     assert_eq!(Builder::PHR_HQ.to_string(), "phr-hq");
+    let thesis: Builder = "phr-thesis:0.5,6".parse().unwrap();
+    assert_eq!(thesis, Builder::Phr(PhrOptions::thesis(0.5, 6.0)));
+    assert_eq!(thesis.to_string(), "phr-thesis:0.5,6");
 }

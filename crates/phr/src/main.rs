@@ -10,12 +10,6 @@ mod scene_arg;
 
 use clap::{Parser, Subcommand};
 
-/// jemalloc keeps freed memory for reuse (it returns dirty pages to the system only after
-/// seconds), where glibc's malloc unmaps every large block on free: the builders allocate
-/// large arrays on every build, and with glibc each build faulted in fresh zeroed pages
-/// (a quarter of a PHR build of the dragon, measured with perf).
-#[global_allocator]
-static GLOBAL: tikv_jemallocator::Jemalloc = tikv_jemallocator::Jemalloc;
 use std::process::ExitCode;
 
 #[derive(Parser)]

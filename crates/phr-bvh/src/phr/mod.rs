@@ -30,13 +30,19 @@ use split::{best_split, SplitScratch};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// What a cut node's weight counts in the sweep.
+///
+/// The default is [`CutWeight::Primitives`], the SAH's own measure. The thesis weighted by
+/// auxiliary nodes; with one primitive per auxiliary leaf a node of `p` primitives then weighs
+/// `2p - 1`, so large unopened clusters count twice as much as the single primitives next to
+/// them and the splits lean away from them. Measured (`phr-fast`, SAH cost vs the full sweep):
+/// Sponza +3.5 % with node weights, +1.7 % with primitive weights; bunny and conference
+/// equal or slightly better too.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum CutWeight {
-    /// Auxiliary nodes in its subtree, the thesis's choice (default).
-    #[default]
+    /// Auxiliary nodes in its subtree, the thesis's choice.
     AuxNodes,
-    /// Primitives in its subtree: the SAH's own measure. (For an auxiliary tree with one
-    /// primitive per leaf the two differ only by the constant: `nodes = 2 · prims - 1`.)
+    /// Primitives in its subtree (default).
+    #[default]
     Primitives,
 }
 
@@ -50,7 +56,9 @@ pub struct PhrOptions {
     pub branching: u32,
     pub leaf: LeafPolicy,
     pub weight: CutWeight,
-    /// Cap on the initial cut's size (the thesis uses 2500); `None` for no cap.
+    /// Cap on the initial cut's size (the thesis uses 2500); `None` (default) for no cap. The
+    /// cap bounds the work of the first split, but a capped cut splits the root coarsely:
+    /// Sponza's PHR-HQ tree costs +4.2 % over the full sweep with the cap, +0.7 % without.
     pub max_initial_cut: Option<usize>,
 }
 
@@ -60,14 +68,19 @@ impl PhrOptions {
     /// PHR-HQ: α = 0.55, δ = 9.
     pub const HQ: PhrOptions = PhrOptions::with(0.55, 9.0);
 
+    /// As the thesis ran it: auxiliary-node weights and an initial cut of at most 2500 nodes.
+    pub const fn thesis(alpha: f32, delta: f32) -> Self {
+        PhrOptions { weight: CutWeight::AuxNodes, max_initial_cut: Some(2500), ..PhrOptions::with(alpha, delta) }
+    }
+
     pub const fn with(alpha: f32, delta: f32) -> Self {
         PhrOptions {
             alpha,
             delta,
             branching: 2,
             leaf: LeafPolicy { max_leaf_size: 8, sah: crate::metrics::SahConstants::UNIT },
-            weight: CutWeight::AuxNodes,
-            max_initial_cut: Some(2500),
+            weight: CutWeight::Primitives,
+            max_initial_cut: None,
         }
     }
 }
