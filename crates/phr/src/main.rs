@@ -4,9 +4,11 @@
 mod animate;
 mod bench_build;
 mod bench_cut_cost;
+mod bench_tune;
 mod info;
 mod render;
 mod scene_arg;
+mod tune;
 
 use clap::{Parser, Subcommand};
 
@@ -32,6 +34,10 @@ enum Command {
     BenchBuild(bench_build::BenchBuildArgs),
     /// Correlation of PHR's build cost Σ|cut| with its build time over a sweep of α and δ.
     BenchCutCost(bench_cut_cost::BenchCutCostArgs),
+    /// Choose PHR's α and δ for a scene, view and image size (grid or Bayesian optimisation).
+    Tune(tune::TuneArgs),
+    /// Bayesian optimisation against a dense grid, and frame times of the tuned builds.
+    BenchTune(bench_tune::BenchTuneArgs),
     /// Animate a scene: move vertices, refit the LBVH, rebuild with PHR, render, every frame.
     Animate(animate::AnimateArgs),
 }
@@ -50,6 +56,8 @@ fn main() -> ExitCode {
         Some(Command::BenchBuild(args)) => bench_build::run(&args),
         Some(Command::BenchCutCost(args)) => bench_cut_cost::run(&args),
         Some(Command::Animate(args)) => animate::run(&args),
+        Some(Command::Tune(args)) => tune::run(&args),
+        Some(Command::BenchTune(args)) => bench_tune::run(&args),
         None => {
             println!("No command given: rendering the built-in scene (run `phr --help` for more).");
             render::run(&render::RenderArgs::default())

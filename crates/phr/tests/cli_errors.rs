@@ -263,3 +263,35 @@ fn tiny_obj_renders_and_validates() {
     assert!(info.stdout.contains("triangles   2"), "{}", info.stdout);
     assert!(info.stdout.contains("invariants  ok"), "{}", info.stdout);
 }
+
+/// `phr tune` runs both methods end to end on a tiny mesh and reports its choice.
+#[test]
+fn tune_runs_grid_and_bayes() {
+    let dir = TempDir::new("tune");
+    dir.write("box.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nf 1 2 3\nf 1 3 4\nf 1 2 6\nf 1 6 5\n");
+    let mesh = dir.0.join("box.obj");
+    let cache = dir.0.join("cache.json");
+    for method in ["grid", "bo"] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_phr"))
+            .args([
+                "tune",
+                mesh.to_str().unwrap(),
+                "--width",
+                "16",
+                "--height",
+                "16",
+                "--budget",
+                "5",
+                "--method",
+                method,
+            ])
+            .arg("--cache")
+            .arg(&cache)
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{method}: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(stdout.contains("chosen α"), "{method}: {stdout}");
+    }
+    assert!(cache.is_file(), "the Bayesian run caches its normalisation maxima");
+}

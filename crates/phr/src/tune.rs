@@ -1,0 +1,222 @@
+//! `phr tune`: choose PHR's α and δ for a scene, view and image size (thesis chapter 6), by
+//! grid search or Bayesian optimisation, with the thesis's objective or a calibrated
+//! frame-time model. Prints every evaluation, the choice, the optimisation time, and that time
+//! expressed in frames of the chosen configuration (thesis Figure 7.2).
+
+use crate::scene_arg::{open_scene, BUILTIN};
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use phr_bvh::phr::PhrOptions;
+use phr_bvh::Bvh;
+use phr_render::camera::Camera;
+use phr_render::geometry::Geometry;
+use phr_render::integrator::PathTracer;
+use phr_render::render::Renderer;
+use phr_render::Scene;
+use phr_tune::bayes::BoOptions;
+use phr_tune::grid::{THESIS_ALPHAS, THESIS_DELTAS};
+use phr_tune::objective::{FrameTimeModel, OMEGA_P, OMEGA_R};
+use phr_tune::tune::{tune, Method, ObjectiveKind, TuneOptions, TuneResult};
+use phr_tune::PhrEvaluator;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    Grid,
+    Bo,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ObjectiveArg {
+    /// The thesis's e(α, δ) = b / max b + ω² c / max c.
+    Thesis,
+    /// Predicted frame time k_b·b + k_r·c·rays, calibrated by measured frames.
+    FrameTime,
+}
+
+#[derive(Args)]
+pub struct TuneArgs {
+    /// A scene file (.json), a mesh file, or `builtin`.
+    #[arg(default_value = BUILTIN)]
+    pub scene: String,
+    #[arg(long)]
+    pub view: Option<String>,
+    #[arg(long, default_value_t = 256)]
+    pub width: u32,
+    #[arg(long, default_value_t = 256)]
+    pub height: u32,
+    #[arg(long, value_enum, default_value = "bo")]
+    pub method: MethodArg,
+    #[arg(long, value_enum, default_value = "thesis")]
+    pub objective: ObjectiveArg,
+    /// Evaluations for Bayesian optimisation (the normalisation runs included).
+    #[arg(long, default_value_t = 20)]
+    pub budget: usize,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Stop Bayesian optimisation after this many milliseconds.
+    #[arg(long)]
+    pub time_budget_ms: Option<u64>,
+    /// Grid values of α (grid search), also the search box (its smallest and largest).
+    #[arg(long, value_delimiter = ',', default_values_t = THESIS_ALPHAS)]
+    pub alphas: Vec<f64>,
+    /// Grid values of δ (grid search), also the search box.
+    #[arg(long, value_delimiter = ',', default_values_t = THESIS_DELTAS)]
+    pub deltas: Vec<f64>,
+    #[arg(long, default_value_t = OMEGA_P)]
+    pub omega_p: f64,
+    #[arg(long, default_value_t = OMEGA_R)]
+    pub omega_r: f64,
+    /// Maximum path segments of the measured frames (the thesis benchmark: 5 bounces).
+    #[arg(long, default_value_t = 6)]
+    pub max_depth: u32,
+    /// Cache file for the thesis objective's maxima.
+    #[arg(long, default_value = "phr-tune-cache.json")]
+    pub cache: PathBuf,
+}
+
+/// Renders one frame (1 spp) with `bvh`; returns (render ms, rays), median of three.
+pub fn measure_frame(
+    scene: &Scene,
+    geometry: &mut Geometry,
+    bvh: Bvh,
+    camera: &Camera,
+    w: u32,
+    h: u32,
+    max_depth: u32,
+) -> (f64, f64) {
+    geometry.bvh = bvh;
+    let renderer = Renderer {
+        tracer: PathTracer { geometry, materials: &scene.materials, background: &scene.background, max_depth },
+        camera: camera.clone(),
+        width: w,
+        height: h,
+        seed: 1,
+    };
+    let mut runs: Vec<(f64, f64)> = (0..3)
+        .map(|frame| {
+            let start = Instant::now();
+            let (_, stats) = renderer.render_frame(frame);
+            (start.elapsed().as_secs_f64() * 1e3, stats.rays as f64)
+        })
+        .collect();
+    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    runs[1]
+}
+
+/// The calibrated frame-time model: builds and renders at the box's two corners.
+pub fn calibrate(
+    evaluator: &PhrEvaluator,
+    scene: &Scene,
+    geometry: &mut Geometry,
+    camera: &Camera,
+    args: (u32, u32, u32),
+    corners: [[f64; 2]; 2],
+) -> FrameTimeModel {
+    let (w, h, depth) = args;
+    let mut builds = Vec::new();
+    let mut renders = Vec::new();
+    let mut rays_sum = 0.0;
+    for [a, d] in corners {
+        let e = evaluator.evaluate(a, d);
+        let (ms, rays) = measure_frame(scene, geometry, evaluator.build(a, d), camera, w, h, depth);
+        builds.push(e);
+        renders.push((e.sah_cost, rays, ms));
+        rays_sum += rays;
+    }
+    FrameTimeModel::calibrate(&builds, &renders, rays_sum / corners.len() as f64)
+}
+
+pub fn run(args: &TuneArgs) -> Result<()> {
+    if args.alphas.is_empty() || args.deltas.is_empty() || args.budget < 3 {
+        bail!("need at least one α, one δ and a budget of 3");
+    }
+    let scene = open_scene(&args.scene)?;
+    let view = scene.view(args.view.as_deref()).with_context(|| format!("no view {:?}", args.view))?;
+    let camera = Camera::new(&view, args.width, args.height);
+    let mut geometry = Geometry::new(&scene);
+    let progress = ProgressBar::new_spinner();
+    progress
+        .set_style(ProgressStyle::with_template("{spinner} tuning: {pos} builds, {elapsed} {msg}").expect("template"));
+    progress.enable_steady_tick(Duration::from_millis(100));
+    let bar = progress.clone();
+    let evaluator = PhrEvaluator::new(&geometry.boxes, PhrOptions::FAST).with_progress(move |e| {
+        bar.inc(1);
+        bar.set_message(format!("last α {:.3} δ {:.2}", e.alpha, e.delta));
+    });
+    let lower = [
+        args.alphas.iter().copied().fold(f64::INFINITY, f64::min),
+        args.deltas.iter().copied().fold(f64::INFINITY, f64::min),
+    ];
+    let upper = [
+        args.alphas.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        args.deltas.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    ];
+    let objective = match args.objective {
+        ObjectiveArg::Thesis => ObjectiveKind::Thesis {
+            width: args.width,
+            height: args.height,
+            omega_p: args.omega_p,
+            omega_r: args.omega_r,
+        },
+        ObjectiveArg::FrameTime => ObjectiveKind::FrameTime(calibrate(
+            &evaluator,
+            &scene,
+            &mut geometry,
+            &camera,
+            (args.width, args.height, args.max_depth),
+            [lower, upper],
+        )),
+    };
+    let method = match args.method {
+        MethodArg::Grid => Method::Grid { alphas: args.alphas.clone(), deltas: args.deltas.clone() },
+        MethodArg::Bo => Method::Bayes(BoOptions {
+            budget: args.budget,
+            seed: args.seed,
+            time_budget: args.time_budget_ms.map(Duration::from_millis),
+            ..Default::default()
+        }),
+    };
+    let key = format!("{}|{}|{:?}|{:?}", args.scene, geometry.prim_count(), lower, upper);
+    let result =
+        tune(&evaluator, &TuneOptions { method, objective, lower, upper, cache: Some((args.cache.clone(), key)) });
+    progress.finish_and_clear();
+    report(args, &result);
+    let (a, d) = (result.best.alpha, result.best.delta);
+    let start = Instant::now();
+    let bvh = evaluator.build(a, d);
+    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let (render_ms, _) = measure_frame(&scene, &mut geometry, bvh, &camera, args.width, args.height, args.max_depth);
+    let frame_ms = build_ms + render_ms;
+    let opt_ms = result.elapsed.as_secs_f64() * 1e3;
+    println!(
+        "chosen α = {a:.3}, δ = {d:.2} | frame {frame_ms:.1} ms (PHR build {build_ms:.1} + render {render_ms:.1}, {}x{}, 1 spp) | optimisation {opt_ms:.0} ms = {:.1} frames, {} builds",
+        args.width,
+        args.height,
+        opt_ms / frame_ms,
+        evaluator.builds()
+    );
+    Ok(())
+}
+
+fn report(args: &TuneArgs, result: &TuneResult) {
+    let name = match args.objective {
+        ObjectiveArg::Thesis => "e(α,δ)",
+        ObjectiveArg::FrameTime => "T ms",
+    };
+    println!("{:>4} {:>7} {:>7} {:>10} {:>9} {:>9} {:>10}", "#", "α", "δ", "Σ|cut|", "SAH(2,1)", "build ms", name);
+    for (i, (e, v)) in result.evaluations.iter().enumerate() {
+        println!(
+            "{:>4} {:>7.3} {:>7.2} {:>10} {:>9.3} {:>9.2} {:>10.4}",
+            i + 1,
+            e.alpha,
+            e.delta,
+            e.build_cost,
+            e.sah_cost,
+            e.build_ms,
+            v
+        );
+    }
+}
