@@ -2,6 +2,7 @@
 //! work itself lives in `phr-bvh` and `phr-render`.
 
 mod animate;
+mod bench;
 mod bench_build;
 mod bench_cut_cost;
 mod bench_tune;
@@ -30,6 +31,8 @@ enum Command {
     Render(render::RenderArgs),
     /// Print scene and BVH statistics.
     Info(info::InfoArgs),
+    /// The thesis's evaluation on the scene suite: tables, CSV, JSON and plots in one folder.
+    Bench(bench::BenchArgs),
     /// Benchmark BVH construction and ray tracing on the shared scenes.
     BenchBuild(bench_build::BenchBuildArgs),
     /// Correlation of PHR's build cost Σ|cut| with its build time over a sweep of α and δ.
@@ -53,6 +56,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Some(Command::Render(args)) => render::run(&args),
         Some(Command::Info(args)) => info::run(&args),
+        Some(Command::Bench(args)) => bench::run(&args),
         Some(Command::BenchBuild(args)) => bench_build::run(&args),
         Some(Command::BenchCutCost(args)) => bench_cut_cost::run(&args),
         Some(Command::Animate(args)) => animate::run(&args),
