@@ -83,6 +83,7 @@ pub struct Results {
     pub cut: Vec<CutPoint>,
     /// Scenes with their heatmap image (file name in the output folder).
     pub heatmaps: Vec<(String, String)>,
+    pub peers: Vec<super::peers::PeerRow>,
 }
 
 struct SceneCtx<'a> {
@@ -145,14 +146,25 @@ pub fn measure_scene(
     progress: &ProgressBar,
     results: &mut Results,
 ) -> Result<()> {
-    let scene = load_scene_file(path)?;
+    let mut scene = load_scene_file(path)?;
+    if plan.materials == super::Materials::Thesis {
+        // The thesis's setting: white sky, every surface diffuse, 5 bounces.
+        let diffuse = phr_render::material::Material::Lambertian { albedo: glam::Vec3::splat(0.7) };
+        scene.materials.iter_mut().for_each(|m| *m = diffuse.clone());
+        scene.background = phr_render::scene::Background::Constant(glam::Vec3::ONE);
+        scene.settings.max_depth = 6;
+    }
     let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let views: Vec<_> = scene.views.iter().take(plan.max_views).map(|(_, c)| c.clone()).collect();
     let mut ctx =
         SceneCtx { scene: &scene, name: name.clone(), geometry: Geometry::new(&scene), views, repeats: plan.repeats };
     let triangles = ctx.geometry.triangles.len();
-    let evaluator = PhrEvaluator::new(&ctx.geometry.boxes, PhrOptions::FAST);
-    for &res in &plan.resolutions {
+    let mut evaluator = PhrEvaluator::new(&ctx.geometry.boxes, PhrOptions::FAST);
+    for (i, &res) in plan.resolutions.iter().enumerate() {
+        if i > 0 {
+            // A fresh evaluator: each resolution's tuning time counts all of its builds.
+            evaluator = PhrEvaluator::new(&ctx.geometry.boxes, PhrOptions::FAST);
+        }
         for builder_name in &plan.builders {
             progress.set_message(format!("{name} {res}² {builder_name}"));
             if builder_name == "sweep-sah" && triangles > plan.sweep_limit {
@@ -208,6 +220,14 @@ pub fn measure_scene(
         }
     }
     results.heatmaps.push((name.clone(), heatmap_pair(&mut ctx, res, out)?));
+    if plan.peers {
+        let camera = Camera::new(&ctx.views[0], res, res);
+        if let Some(row) =
+            progress.suspend(|| super::peers::run(&name, path, &scene, &mut ctx.geometry, &camera, res, out))?
+        {
+            results.peers.push(row);
+        }
+    }
     progress.inc(1);
     Ok(())
 }

@@ -6,9 +6,11 @@
 //! apart), SAH cost, `Σ |cut|`, render time (1 spp, mean over the views), frame time and
 //! Mrays/s, with median and spread over repeats; PHR-Grid and PHR-BO are tuned per scene and
 //! resolution, and their tuning time is given in frames. Results go to `DIR` as CSV, JSON, a
-//! Markdown report in the layout of the thesis's Table 7.1, and plots ([`plots`]).
+//! Markdown report in the layout of the thesis's Table 7.1, and plots ([`plots`]); with
+//! `--peers`, Embree on the same triangles and rays ([`peers`]).
 
 mod measure;
+mod peers;
 mod plots;
 mod report;
 
@@ -42,9 +44,23 @@ pub struct BenchArgs {
     /// A small run (bunny, one view, one repeat, 256², no reference builders), for CI.
     #[arg(long)]
     pub quick: bool,
+    /// `thesis`: every surface diffuse (albedo 0.7), white sky, up to 6 path segments,
+    /// whatever the scene file says (the thesis's benchmark setting); `own`: the scene files'
+    /// own materials, background and depth.
+    #[arg(long, value_enum, default_value = "thesis")]
+    pub materials: Materials,
+    /// Also run the peers (Embree via embreex, bench/peers.py) on the same triangles and rays.
+    #[arg(long)]
+    pub peers: bool,
     /// Skip the full-sweep SAH builder on scenes above this many triangles (it is slow).
     #[arg(long, default_value_t = 2_000_000)]
     pub sweep_limit: usize,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Materials {
+    Thesis,
+    Own,
 }
 
 /// What the measurement needs to know, after `--quick` is applied.
@@ -57,6 +73,8 @@ pub struct Plan {
     pub branching: Vec<u32>,
     pub cut_grid: (Vec<f64>, Vec<f64>),
     pub sweep_limit: usize,
+    pub peers: bool,
+    pub materials: Materials,
 }
 
 fn suite_dir() -> Result<PathBuf> {
@@ -90,6 +108,8 @@ fn plan(args: &BenchArgs) -> Result<Plan> {
             branching: vec![2, 4],
             cut_grid: (vec![0.4, 0.6], vec![6.0, 9.0]),
             sweep_limit: args.sweep_limit,
+            peers: args.peers,
+            materials: args.materials,
         });
     }
     Ok(Plan {
@@ -101,6 +121,8 @@ fn plan(args: &BenchArgs) -> Result<Plan> {
         branching: vec![2, 4, 8, 16],
         cut_grid: (vec![0.4, 0.5, 0.6, 0.7], vec![5.0, 7.0, 9.0, 11.0]),
         sweep_limit: args.sweep_limit,
+        peers: args.peers,
+        materials: args.materials,
     })
 }
 

@@ -39,14 +39,15 @@ pub fn write_all(out: &Path, r: &Results) -> Result<()> {
 }
 
 fn bars(path: &Path, title: &str, data: &[(String, f64)]) -> Result<()> {
-    let root = SVGBackend::new(path, SIZE).into_drawing_area();
+    let size = (SIZE.0.max(24 * data.len() as u32 + 120), SIZE.1 + 60);
+    let root = SVGBackend::new(path, size).into_drawing_area();
     root.fill(&WHITE)?;
     let max = data.iter().map(|d| d.1).fold(0.0f64, f64::max).max(1e-9) * 1.15;
     let n = data.len().max(1);
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 18))
         .margin(12)
-        .x_label_area_size(90)
+        .x_label_area_size(150)
         .y_label_area_size(50)
         .build_cartesian_2d(0.0..n as f64, 0.0..max)
         .context("plot axes")?;

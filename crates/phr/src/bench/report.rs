@@ -95,6 +95,23 @@ fn json(r: &Results) -> String {
         .unwrap_or_default()
 }
 
+/// Frame time relative to the LBVH's for one scene, per builder, averaged over resolutions.
+pub fn relative_frame_times_of(r: &Results, scene: &str) -> Vec<(String, f64)> {
+    let rows = Results { rows: r.rows.iter().filter(|x| x.scene == scene).cloned().collect(), ..Default::default() };
+    relative_frame_times(&rows)
+}
+
+/// Scene names in order of appearance.
+pub fn scene_names(r: &Results) -> Vec<String> {
+    let mut scenes: Vec<String> = Vec::new();
+    for x in &r.rows {
+        if !scenes.contains(&x.scene) {
+            scenes.push(x.scene.clone());
+        }
+    }
+    scenes
+}
+
 /// Frame time relative to the LBVH's, per builder, averaged over scenes and resolutions.
 pub fn relative_frame_times(r: &Results) -> Vec<(String, f64)> {
     let mut builders: Vec<String> = Vec::new();
@@ -131,10 +148,13 @@ pub fn summary(r: &Results) -> String {
 fn markdown(plan: &Plan, r: &Results) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# phr bench report\n");
+    let command: Vec<String> = std::env::args().skip(1).collect();
+    let _ =
+        writeln!(s, "Command: `phr {}` (regenerate with the same command; do not edit by hand).\n", command.join(" "));
     let _ = writeln!(
         s,
-        "Made by `phr bench` ({} repeats; resolutions {:?}; builders {}). Machine: {} cores. Setting: the thesis's \
-         (white sky, diffuse surfaces, up to 6 path segments, 1 spp, 60° field of view), up to {} views per scene, render \
+        "Made by `phr bench` ({} repeats; resolutions {:?}; builders {}). Machine: {} cores. Setting: {}, 1 spp, 60° \
+         field of view, up to {} views per scene, render \
          times are the mean over the views of the median 1-spp frame. Build times are medians; `[min–max]` is the spread. \
          PHR times are shown as auxiliary LBVH + PHR. SAH costs use traversal 2, intersection 1 (the thesis's). The \
          thesis column gives the thesis's published figure where one exists (Go, 6-core desktop; its bunny had 144k \
@@ -143,6 +163,10 @@ fn markdown(plan: &Plan, r: &Results) -> String {
         plan.resolutions,
         plan.builders.join(", "),
         rayon::current_num_threads(),
+        match plan.materials {
+            super::Materials::Thesis => "the thesis's (white sky, every surface diffuse, up to 6 path segments)",
+            super::Materials::Own => "the scene files' own materials, background and depth",
+        },
         plan.max_views
     );
     let mut scenes: Vec<&str> = Vec::new();
@@ -199,10 +223,22 @@ fn markdown(plan: &Plan, r: &Results) -> String {
         s.push('\n');
     }
     let _ = writeln!(s, "## Frame time relative to LBVH (Figure 7.1)\n");
-    let _ = writeln!(s, "Mean over scenes and resolutions; below 1 is faster than the LBVH. The thesis reported PHR-Grid and PHR-BO about 50 % and PHR-Fast about 33 % faster than its LBVH.\n");
-    let _ = writeln!(s, "| builder | frame time / LBVH |\n|---|---|");
-    for (b, ratio) in relative_frame_times(r) {
-        let _ = writeln!(s, "| {b} | {ratio:.3} |");
+    let _ = writeln!(s, "Per scene (mean over the resolutions) and over all scenes; below 1 is faster than the LBVH. The thesis reported PHR-Grid and PHR-BO about 50 % and PHR-Fast about 33 % faster than its LBVH.\n");
+    let all = relative_frame_times(r);
+    let mut header = String::from("| builder |");
+    let mut rule = String::from("|---|");
+    for scene in scene_names(r) {
+        let _ = write!(header, " {scene} |");
+        rule.push_str("---|");
+    }
+    let _ = writeln!(s, "{header} all scenes |\n{rule}---|");
+    for (b, ratio) in &all {
+        let _ = write!(s, "| {b} |");
+        for scene in scene_names(r) {
+            let v = relative_frame_times_of(r, &scene).into_iter().find(|(x, _)| x == b).map(|x| x.1);
+            let _ = write!(s, " {} |", v.map_or(String::new(), |v| format!("{v:.3}")));
+        }
+        let _ = writeln!(s, " {ratio:.3} |");
     }
     let _ = writeln!(s, "\n![frame time relative to LBVH](frame_time_vs_lbvh.svg)\n");
     let _ = writeln!(s, "## Tuning time in frames (Figure 7.2)\n");
@@ -235,6 +271,33 @@ fn markdown(plan: &Plan, r: &Results) -> String {
         let _ = writeln!(s, "| {} | {} | {:.1} | {:.2} | {:.1} |", b.scene, b.k, b.build_ms, b.sah_21, b.render_ms);
     }
     let _ = writeln!(s, "\n![branching factor](branching.svg)\n");
+    if !r.peers.is_empty() {
+        let _ = writeln!(s, "## Peers: Embree on the same triangles and rays (`--peers`)\n");
+        let _ = writeln!(
+            s,
+            "One thread on both sides (embreex traces on one thread). Ours: PHR-HQ, build = LBVH + PHR. Embree: its default BVH, build = scene commit. Rays: the primary rays of the first view at {}² and one diffuse bounce from each hit.\n",
+            plan.resolutions[0]
+        );
+        let _ = writeln!(s, "| scene | rays | build ms ours / Embree | primary Mrays/s ours / Embree | diffuse Mrays/s ours / Embree | hit agreement | 1-spp frame ours | Mitsuba 3 |\n|---|---|---|---|---|---|---|---|");
+        for p in &r.peers {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.1} / {:.1} | {:.2} / {:.2} | {:.2} / {:.2} | {:.4} | {:.1} ms | {} |",
+                p.scene,
+                p.rays,
+                p.ours_build_ms,
+                p.embree_build_ms,
+                p.ours_primary,
+                p.embree_primary,
+                p.ours_diffuse,
+                p.embree_diffuse,
+                p.hit_agreement,
+                p.ours_frame_ms,
+                p.mitsuba
+            );
+        }
+        s.push('\n');
+    }
     let _ = writeln!(s, "## Traversal steps per primary ray: LBVH (left) and PHR-HQ (right) (Figure 5.3)\n");
     for (scene, file) in &r.heatmaps {
         let _ = writeln!(s, "{scene}:\n\n![{scene} heatmaps]({file})\n");
