@@ -61,6 +61,21 @@ impl PhrEvaluator {
         build_phr_with(&self.aux, &self.counts, &self.options(alpha, delta)).0
     }
 
+    /// Builds (α, δ) afresh and times it, bypassing the cache (whose timings may come from
+    /// builds run in parallel, as in grid search).
+    pub fn measure(&self, alpha: f64, delta: f64) -> Evaluation {
+        let start = Instant::now();
+        let (bvh, stats) = build_phr_with(&self.aux, &self.counts, &self.options(alpha, delta));
+        let build_ms = start.elapsed().as_secs_f64() * 1e3;
+        Evaluation {
+            alpha,
+            delta,
+            build_cost: stats.build_cost as f64,
+            sah_cost: sah_cost(&bvh, SahConstants::THESIS),
+            build_ms,
+        }
+    }
+
     /// Evaluates (α, δ), from the cache when it was evaluated before.
     pub fn evaluate(&self, alpha: f64, delta: f64) -> Evaluation {
         let key = (alpha.to_bits(), delta.to_bits());
