@@ -263,14 +263,12 @@ impl SceneBuilder<'_> {
         if w == 0 || h == 0 {
             return Err(self.err(format!("image size {w}x{h} is empty")));
         }
-        let defaults = RenderSettings::default();
         self.scene.settings = RenderSettings {
             width: w,
             height: h,
             spp: file.spp.unwrap_or(64).max(1),
             max_depth: file.max_depth.unwrap_or(50).max(1),
         };
-        let _ = defaults;
         self.scene.background = match file.background {
             None => Background::Constant(Vec3::ZERO),
             Some(BackgroundFile::Color(c)) => Background::Constant(c.into()),
