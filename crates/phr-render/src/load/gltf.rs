@@ -5,16 +5,23 @@
 //! by material (one group per glTF material, named after it or `material_N`; primitives without
 //! a material go to `default`). Perspective cameras are returned with their world placement.
 //!
+//! Animations: keyframed node translation, rotation and scale (step, linear, cubic spline)
+//! are read into a [`NodeAnimation`] that poses the vertices of the nodes they move; all of
+//! a file's animations play together.
+//!
 //! Limits: other primitive modes (points, lines, strips, fans) and orthographic cameras are
 //! skipped; sparse accessors, morph targets and skins are not supported; textures are not read.
 
 use super::{check_finite, finish, GltfMaterial, Location, MeshData, SourceCamera, SourceMaterial};
+use crate::animation::{AnimatedNode, AnimatedPart, Interpolation, NodeAnimation, Track};
 use crate::error::LoadError;
 use ::gltf::accessor::{DataType, Dimensions};
+use ::gltf::animation::util::ReadOutputs;
+use ::gltf::animation::Property;
 use ::gltf::camera::Projection;
 use ::gltf::mesh::Mode;
 use ::gltf::{Accessor, Document, Node, Primitive};
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Quat, Vec3};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -29,9 +36,19 @@ pub(super) fn parse(path: &Path, base_dir: &Path, bytes: &[u8]) -> Result<MeshDa
     let buffers: Vec<&[u8]> = buffers.iter().map(|data| &data.0[..]).collect();
     let scene = (document.default_scene().or_else(|| document.scenes().next()))
         .ok_or_else(|| LoadError::new(path, "glTF file has no scene"))?;
-    let mut builder = Builder { path, buffers: &buffers, mesh: MeshData::default(), groups: HashMap::new() };
+    let animated = document.animations().next().is_some();
+    let mut builder = Builder {
+        path,
+        buffers: &buffers,
+        mesh: MeshData::default(),
+        groups: HashMap::new(),
+        parts: animated.then(Vec::new),
+    };
     for node in scene.nodes() {
         builder.node(&node, Mat4::IDENTITY, 0)?;
+    }
+    if let Some(parts) = builder.parts.take() {
+        builder.mesh.animation = builder.animation(&document, parts)?.map(Box::new);
     }
     finish(path, builder.mesh)
 }
@@ -80,6 +97,8 @@ struct Builder<'a> {
     mesh: MeshData,
     /// Group index by glTF material index (`None`: no material).
     groups: HashMap<Option<usize>, u32>,
+    /// For files with animations: the vertices each node placed, in the node's own space.
+    parts: Option<Vec<AnimatedPart>>,
 }
 
 impl Builder<'_> {
@@ -96,7 +115,7 @@ impl Builder<'_> {
             let mesh_name = mesh.name().map_or_else(|| format!("mesh {}", mesh.index()), |n| format!("mesh `{n}`"));
             for primitive in mesh.primitives().filter(|p| p.mode() == Mode::Triangles) {
                 let context = format!("{mesh_name}, primitive {}", primitive.index());
-                self.primitive(&primitive, world, &context)?;
+                self.primitive(&primitive, node.index(), world, &context)?;
             }
         }
         if let Some(camera) = node.camera() {
@@ -108,7 +127,7 @@ impl Builder<'_> {
         Ok(())
     }
 
-    fn primitive(&mut self, primitive: &Primitive, world: Mat4, context: &str) -> Result<(), LoadError> {
+    fn primitive(&mut self, primitive: &Primitive, node: usize, world: Mat4, context: &str) -> Result<(), LoadError> {
         let positions = (primitive.get(&::gltf::Semantic::Positions))
             .ok_or_else(|| self.error(format!("{context}: no POSITION attribute")))?;
         self.check_accessor(&positions, context, &[DataType::F32], Dimensions::Vec3)?;
@@ -121,10 +140,14 @@ impl Builder<'_> {
         let Some(points) = reader.read_positions() else {
             return Err(self.error(format!("{context}: cannot read positions")));
         };
-        for point in points {
-            let p = world.transform_point3(Vec3::from(point));
+        let local: Vec<Vec3> = points.map(Vec3::from).collect();
+        for &point in &local {
+            let p = world.transform_point3(point);
             check_finite(self.path, p, Location::Vertex(self.mesh.positions.len()))?;
             self.mesh.positions.push(p);
+        }
+        if let Some(parts) = &mut self.parts {
+            parts.push(AnimatedPart { node, first_vertex: base, local });
         }
         let count = self.mesh.positions.len() - base;
         let indices: Vec<u32> = match reader.read_indices() {
@@ -136,6 +159,86 @@ impl Builder<'_> {
         let triangles = self.mesh.triangles.len();
         self.mesh.triangle_group.resize(triangles, group);
         Ok(())
+    }
+
+    /// The keyframed node animations of the file, all played together; `None` if none of them
+    /// moves a mesh. Morph-target weights are not supported and skipped.
+    fn animation(&self, document: &Document, parts: Vec<AnimatedPart>) -> Result<Option<NodeAnimation>, LoadError> {
+        let mut nodes: Vec<AnimatedNode> = document
+            .nodes()
+            .map(|n| {
+                let (translation, rotation, scale) = n.transform().decomposed();
+                AnimatedNode {
+                    parent: None,
+                    translation: translation.into(),
+                    rotation: Quat::from_array(rotation).normalize(),
+                    scale: scale.into(),
+                    translation_track: None,
+                    rotation_track: None,
+                    scale_track: None,
+                }
+            })
+            .collect();
+        for n in document.nodes() {
+            for child in n.children() {
+                nodes[child.index()].parent = Some(n.index());
+            }
+        }
+        let buffers = self.buffers;
+        let mut duration = 0.0f32;
+        for animation in document.animations() {
+            for channel in animation.channels() {
+                let context = format!("animation {}, channel {}", animation.index(), channel.index());
+                let sampler = channel.sampler();
+                self.check_accessor(&sampler.input(), &context, &[DataType::F32], Dimensions::Scalar)?;
+                let output_types = [DataType::F32, DataType::I8, DataType::U8, DataType::I16, DataType::U16];
+                let (types, dims) = match channel.target().property() {
+                    Property::Rotation => (&output_types[..], Dimensions::Vec4),
+                    Property::MorphTargetWeights => continue,
+                    _ => (&output_types[..1], Dimensions::Vec3),
+                };
+                self.check_accessor(&sampler.output(), &context, types, dims)?;
+                let reader = channel.reader(|buffer| buffers.get(buffer.index()).copied());
+                let times: Vec<f32> = reader.read_inputs().map(|i| i.collect()).unwrap_or_default();
+                if times.is_empty() || times.iter().any(|t| !t.is_finite()) || times.windows(2).any(|w| w[1] < w[0]) {
+                    return Err(self.error(format!("{context}: keyframe times must be finite and increasing")));
+                }
+                let interpolation = match sampler.interpolation() {
+                    ::gltf::animation::Interpolation::Step => Interpolation::Step,
+                    ::gltf::animation::Interpolation::Linear => Interpolation::Linear,
+                    ::gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
+                };
+                let per_key = if interpolation == Interpolation::CubicSpline { 3 } else { 1 };
+                let node = &mut nodes[channel.target().node().index()];
+                let count_error = |n: usize| format!("{context}: {n} values for {} keyframes", times.len());
+                match reader.read_outputs() {
+                    Some(ReadOutputs::Translations(v)) | Some(ReadOutputs::Scales(v)) => {
+                        let values: Vec<Vec3> = v.map(Vec3::from).collect();
+                        if values.len() != per_key * times.len() || values.iter().any(|v| !v.is_finite()) {
+                            return Err(self.error(count_error(values.len())));
+                        }
+                        let track = Some(Track { times: times.clone(), values, interpolation });
+                        if channel.target().property() == Property::Translation {
+                            node.translation_track = track;
+                        } else {
+                            node.scale_track = track;
+                        }
+                    }
+                    Some(ReadOutputs::Rotations(r)) => {
+                        let values: Vec<Quat> = r.into_f32().map(Quat::from_array).collect();
+                        if values.len() != per_key * times.len() || values.iter().any(|q| !q.is_finite()) {
+                            return Err(self.error(count_error(values.len())));
+                        }
+                        node.rotation_track = Some(Track { times: times.clone(), values, interpolation });
+                    }
+                    _ => continue,
+                }
+                duration = duration.max(*times.last().unwrap_or(&0.0));
+            }
+        }
+        let mut animation = NodeAnimation { nodes, parts: Vec::new(), duration, outer: Mat4::IDENTITY };
+        animation.parts = parts.into_iter().filter(|p| animation.moves(p.node)).collect();
+        Ok((!animation.parts.is_empty()).then_some(animation))
     }
 
     /// Appends the triangles of one primitive, whose `count` vertices start at `base`.

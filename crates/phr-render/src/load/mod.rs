@@ -69,6 +69,8 @@ pub struct MeshData {
     pub group_materials: Vec<SourceMaterial>,
     /// Cameras the file defines (glTF only).
     pub cameras: Vec<SourceCamera>,
+    /// Keyframed node animations (glTF only), posing ranges of `positions`.
+    pub animation: Option<Box<crate::animation::NodeAnimation>>,
 }
 
 impl MeshData {

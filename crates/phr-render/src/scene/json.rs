@@ -14,6 +14,7 @@
 
 use super::materials::{map_source_material, MtlMapping};
 use super::{Background, Mesh, RenderSettings, Scene, SphereObject};
+use crate::animation::{Animation, AnimationTarget, Motion, ObjectAnimation};
 use crate::camera::CameraDesc;
 use crate::error::LoadError;
 use crate::load::{load_mesh, MeshData};
@@ -54,7 +55,52 @@ struct SceneFile {
     background: Option<BackgroundFile>,
     #[serde(default)]
     materials: IndexMap<String, MaterialFile>,
-    objects: Vec<ObjectFile>,
+    objects: Vec<ObjectEntry>,
+}
+
+/// An object and, for dynamic scenes, how it moves.
+#[derive(Deserialize)]
+struct ObjectEntry {
+    #[serde(flatten)]
+    object: ObjectFile,
+    animate: Option<MotionsFile>,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum MotionsFile {
+    One(MotionFile),
+    Many(Vec<MotionFile>),
+}
+
+/// A procedural motion (see [`crate::animation::Motion`]).
+#[derive(Clone, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+enum MotionFile {
+    Rotate {
+        #[serde(default = "default_up")]
+        axis: [f32; 3],
+        /// Defaults to the centre of the object's bounds.
+        pivot: Option<[f32; 3]>,
+        degrees_per_second: f32,
+    },
+    Oscillate {
+        amplitude: [f32; 3],
+        period: f32,
+    },
+    Wave {
+        amplitude: f32,
+        wavelength: f32,
+        period: f32,
+        #[serde(default = "default_wave_direction")]
+        direction: [f32; 3],
+        #[serde(default = "default_up")]
+        displacement: [f32; 3],
+    },
+}
+
+fn default_wave_direction() -> [f32; 3] {
+    [1.0, 0.0, 0.0]
 }
 
 #[derive(Deserialize)]
@@ -286,8 +332,12 @@ impl SceneBuilder<'_> {
         for (name, c) in &file.views {
             self.scene.views.push((name.clone(), camera_desc(c)));
         }
-        for (i, object) in file.objects.iter().enumerate() {
-            self.add_object(i, object)?;
+        for (i, entry) in file.objects.iter().enumerate() {
+            let (meshes, spheres) = (self.scene.meshes.len(), self.scene.spheres.len());
+            self.add_object(i, &entry.object)?;
+            if let Some(animate) = &entry.animate {
+                self.animate(i, animate, meshes, spheres)?;
+            }
         }
         if self.scene.meshes.is_empty() && self.scene.spheres.is_empty() {
             return Err(self.err("the scene has no objects"));
@@ -297,6 +347,65 @@ impl SceneBuilder<'_> {
             self.scene.views.push(("auto".into(), auto));
         }
         Ok(self.scene)
+    }
+
+    /// Attaches `animate` to the mesh or sphere object `i` just added (the first new mesh is
+    /// number `meshes`, the first new sphere `spheres`).
+    fn animate(&mut self, i: usize, animate: &MotionsFile, meshes: usize, spheres: usize) -> Result<(), LoadError> {
+        let (target, pivot) = if self.scene.spheres.len() > spheres {
+            (AnimationTarget::Sphere(spheres), self.scene.spheres[spheres].sphere.center)
+        } else if self.scene.meshes.len() > meshes {
+            let mut b = phr_bvh::Aabb::EMPTY;
+            self.scene.meshes[meshes].positions.iter().for_each(|&p| b = b.grown(p));
+            (AnimationTarget::Mesh(meshes), b.center())
+        } else {
+            return Err(self.err(format!("object {i}: nothing to animate")));
+        };
+        if self.scene.animations.iter().any(|a| a.target == target) {
+            return Err(
+                self.err(format!("object {i}: the glTF file animates itself; \"animate\" cannot be combined with it"))
+            );
+        }
+        let list = match animate {
+            MotionsFile::One(m) => vec![m.clone()],
+            MotionsFile::Many(ms) => ms.clone(),
+        };
+        let bad = |what: &str| self.err(format!("object {i}: animate: {what}"));
+        let unit = |v: [f32; 3], what: &str| {
+            let v = Vec3::from(v);
+            if v.is_finite() && v.length() > 0.0 {
+                Ok(v.normalize())
+            } else {
+                Err(bad(&format!("{what} must be a non-zero vector")))
+            }
+        };
+        let positive = |x: f32, what: &str| {
+            if x.is_finite() && x > 0.0 {
+                Ok(x)
+            } else {
+                Err(bad(&format!("{what} must be positive")))
+            }
+        };
+        let mut motions = Vec::with_capacity(list.len());
+        for m in list {
+            motions.push(match m {
+                MotionFile::Rotate { axis, pivot: p, degrees_per_second } => {
+                    Motion::Rotate { axis: unit(axis, "axis")?, pivot: p.map_or(pivot, Vec3::from), degrees_per_second }
+                }
+                MotionFile::Oscillate { amplitude, period } => {
+                    Motion::Oscillate { amplitude: amplitude.into(), period: positive(period, "period")? }
+                }
+                MotionFile::Wave { amplitude, wavelength, period, direction, displacement } => Motion::Wave {
+                    amplitude,
+                    wavelength: positive(wavelength, "wavelength")?,
+                    period: positive(period, "period")?,
+                    direction: unit(direction, "direction")?,
+                    displacement: unit(displacement, "displacement")?,
+                },
+            });
+        }
+        self.scene.animations.push(ObjectAnimation { target, animation: Animation::Procedural(motions) });
+        Ok(())
     }
 
     fn material(&self, object: usize, name: &str) -> Result<u32, LoadError> {
@@ -360,7 +469,12 @@ impl SceneBuilder<'_> {
                 self.push_grouped(file, data, &group_material);
             }
             ObjectFile::Gltf { file, transform } => {
-                let data = self.load(file, transform)?;
+                let mut data = self.load(file, transform)?;
+                if let Some(mut nodes) = data.animation.take() {
+                    nodes.outer = transform.as_ref().map_or(Mat4::IDENTITY, TransformFile::matrix);
+                    let target = AnimationTarget::Mesh(self.scene.meshes.len());
+                    self.scene.animations.push(ObjectAnimation { target, animation: Animation::Nodes(nodes) });
+                }
                 let group_material: Vec<u32> = (0..data.groups.len())
                     .map(|g| {
                         let m = map_source_material(&data.group_materials[g], MtlMapping::Full);

@@ -9,6 +9,7 @@ pub mod builtin;
 pub mod json;
 pub mod materials;
 
+use crate::animation::ObjectAnimation;
 use crate::camera::CameraDesc;
 use crate::material::Material;
 use glam::Vec3;
@@ -80,6 +81,8 @@ pub struct Scene {
     /// Named views; the first is the default.
     pub views: Vec<(String, CameraDesc)>,
     pub settings: RenderSettings,
+    /// What moves (empty for a static scene); see [`crate::animation`].
+    pub animations: Vec<ObjectAnimation>,
 }
 
 impl Default for Scene {
@@ -92,6 +95,7 @@ impl Default for Scene {
             background: Background::Constant(Vec3::ZERO),
             views: Vec::new(),
             settings: RenderSettings::default(),
+            animations: Vec::new(),
         }
     }
 }
