@@ -84,7 +84,13 @@ impl Geometry {
 
     /// Builds the BVH with `build` (any of phr-bvh's builders) over the current boxes.
     pub fn build(&mut self, build: impl FnOnce(&[Aabb]) -> Bvh) {
-        self.bvh = build(&self.boxes);
+        let bvh = build(&self.boxes);
+        self.set_bvh(bvh);
+    }
+
+    /// Uses `bvh`, built elsewhere over the current boxes (the dynamic pipeline's PHR tree).
+    pub fn set_bvh(&mut self, bvh: Bvh) {
+        self.bvh = bvh;
     }
 
     #[inline(always)]

@@ -3,8 +3,10 @@
 //! The data path, one module per step: scene file ([`scene::json`]) or mesh file ([`load`])
 //! → [`scene::Scene`] → triangles and spheres with a BVH ([`geometry`]) → camera rays
 //! ([`camera`]) → hits → shading ([`material`], [`integrator`]) → [`film`] → image files
-//! ([`output`]). [`render`] runs the progressive, multi-threaded loop.
+//! ([`output`]). [`render`] runs the progressive, multi-threaded loop; [`animation`] poses
+//! dynamic scenes and [`pipeline`] runs the per-frame loop of the interactive viewer.
 
+pub mod animation;
 pub mod camera;
 pub mod error;
 pub mod film;
@@ -13,6 +15,7 @@ pub mod integrator;
 pub mod load;
 pub mod material;
 pub mod output;
+pub mod pipeline;
 pub mod render;
 pub mod sampler;
 pub mod scene;

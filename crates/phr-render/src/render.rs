@@ -38,6 +38,20 @@ impl Renderer<'_> {
 
     /// Renders frame number `frame` (1 sample per pixel); pixels row-major from the top left.
     pub fn render_frame(&self, frame: u32) -> (Vec<Vec3>, FrameStats) {
+        self.render_frame_with(frame, |ray, rng| {
+            let sample = self.tracer.trace(ray, rng);
+            (sample.radiance, sample.rays)
+        })
+    }
+
+    /// The tile loop of [`Renderer::render_frame`] with another per-pixel estimator:
+    /// `shade(camera_ray, rng)` returns a colour and the number of rays it traced. The
+    /// viewer's normal, albedo and heatmap modes use it.
+    pub fn render_frame_with(
+        &self,
+        frame: u32,
+        shade: impl Fn(phr_bvh::Ray, &mut Pcg32) -> (Vec3, u32) + Sync,
+    ) -> (Vec<Vec3>, FrameStats) {
         let tiles: Vec<(Vec<Vec3>, u64)> = self
             .tiles()
             .into_par_iter()
@@ -49,9 +63,9 @@ impl Renderer<'_> {
                         let mut rng = Pcg32::for_pixel(self.seed, frame, y * self.width + x);
                         let (jx, jy) = (rng.next_f32(), rng.next_f32());
                         let ray = self.camera.ray(x as f32 + jx, y as f32 + jy);
-                        let sample = self.tracer.trace(ray, &mut rng);
-                        out.push(sample.radiance);
-                        rays += sample.rays as u64;
+                        let (colour, traced) = shade(ray, &mut rng);
+                        out.push(colour);
+                        rays += traced as u64;
                     }
                 }
                 (out, rays)

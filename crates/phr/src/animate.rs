@@ -83,7 +83,7 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
         geometry.update_boxes();
         let animate_ms = start.elapsed().as_secs_f64() * 1e3;
         let (bvh, timings) = dynamic.update(&geometry.boxes);
-        geometry.bvh = bvh;
+        geometry.set_bvh(bvh);
         let render_start = Instant::now();
         let renderer = Renderer {
             tracer: PathTracer {

@@ -1,0 +1,343 @@
+//! The per-frame loop of the interactive viewer and of its headless mode, thesis section 5.3:
+//! pose the animated objects → refit the auxiliary LBVH → rebuild the render BVH with PHR →
+//! render one sample per pixel → accumulate. While nothing moves (no animation playing, no
+//! camera or setting change), frames add samples to the film; any change restarts it.
+//!
+//! [`FramePipeline::step`] does one frame and reports the time of each stage, which is what
+//! the viewer's statistics panel and the headless CSV show.
+
+use crate::animation::Animator;
+use crate::camera::{Camera, CameraDesc};
+use crate::film::Film;
+use crate::geometry::Geometry;
+use crate::integrator::PathTracer;
+use crate::material::Material;
+use crate::output::{srgb_encode, turbo};
+use crate::render::Renderer;
+use crate::scene::Scene;
+use glam::Vec3;
+use phr_bvh::dynamic::DynamicBvh;
+use phr_bvh::{sah_cost, Builder, SahConstants, TraversalStats};
+use std::time::Instant;
+
+/// What the image shows.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ViewMode {
+    /// The path-traced image.
+    #[default]
+    Colour,
+    /// First-hit geometric normals, mapped from [-1, 1] to [0, 1].
+    Normals,
+    /// First-hit material colour (albedo; emitters by their normalised emission).
+    Albedo,
+    /// Traversal steps of the camera ray (thesis Figure 5.3), blue (few) to red (many).
+    Heatmap,
+}
+
+impl ViewMode {
+    pub const ALL: [ViewMode; 4] = [ViewMode::Colour, ViewMode::Normals, ViewMode::Albedo, ViewMode::Heatmap];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ViewMode::Colour => "colour",
+            ViewMode::Normals => "normals",
+            ViewMode::Albedo => "albedo",
+            ViewMode::Heatmap => "heatmap",
+        }
+    }
+}
+
+/// Traversal steps shown as red in the heatmap mode.
+pub const HEATMAP_MAX_STEPS: f32 = 150.0;
+
+/// Settings whose change restarts accumulation (and, for the builder, rebuilds the tree).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PipelineSettings {
+    pub builder: Builder,
+    pub width: u32,
+    pub height: u32,
+    /// Maximum ray segments per path (camera ray included).
+    pub max_depth: u32,
+    pub mode: ViewMode,
+}
+
+/// What one frame cost and produced.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FrameReport {
+    pub frame: u64,
+    /// Animation time (seconds) the frame shows.
+    pub time: f32,
+    /// Objects moved this frame (so the tree was refitted and rebuilt).
+    pub moved: bool,
+    /// Moving vertices and recomputing primitive boxes.
+    pub pose_ms: f64,
+    /// Refitting the auxiliary LBVH (PHR builders; building it, the first time).
+    pub refit_ms: f64,
+    /// Building the render BVH (0 when the tree was kept).
+    pub build_ms: f64,
+    pub render_ms: f64,
+    /// Everything above.
+    pub frame_ms: f64,
+    pub rays: u64,
+    /// SAH cost (unit constants) of the current render tree.
+    pub sah_cost: f64,
+    /// PHR's Σ|cut| of the last build (0 for other builders).
+    pub build_cost: u64,
+    /// Samples per pixel accumulated so far, this frame's included.
+    pub samples: u32,
+}
+
+impl FrameReport {
+    pub fn mrays_per_s(&self) -> f64 {
+        if self.render_ms > 0.0 {
+            self.rays as f64 / self.render_ms / 1e3
+        } else {
+            0.0
+        }
+    }
+}
+
+/// A scene being shown: geometry, tree, animation clock and the accumulating film.
+pub struct FramePipeline {
+    scene: Scene,
+    geometry: Geometry,
+    animator: Animator,
+    /// PHR's auxiliary tree, kept across frames and refitted (PHR builders only).
+    dynamic: Option<DynamicBvh>,
+    settings: PipelineSettings,
+    camera: CameraDesc,
+    film: Film,
+    samples: u32,
+    frame: u64,
+    seed: u64,
+    tree_dirty: bool,
+    sah: f64,
+    build_cost: u64,
+    /// Animation time in seconds.
+    pub time: f32,
+    pub playing: bool,
+    /// Animation speed factor (1 = real time).
+    pub speed: f32,
+}
+
+impl FramePipeline {
+    pub fn new(scene: Scene, settings: PipelineSettings, camera: CameraDesc) -> Self {
+        let geometry = Geometry::new(&scene);
+        let animator = Animator::new(&scene);
+        let film = Film::new(settings.width, settings.height);
+        Self {
+            scene,
+            geometry,
+            animator,
+            dynamic: None,
+            settings,
+            camera,
+            film,
+            samples: 0,
+            frame: 0,
+            seed: 0,
+            tree_dirty: true,
+            sah: 0.0,
+            build_cost: 0,
+            time: 0.0,
+            playing: true,
+            speed: 1.0,
+        }
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    pub fn geometry(&self) -> &Geometry {
+        &self.geometry
+    }
+
+    pub fn settings(&self) -> &PipelineSettings {
+        &self.settings
+    }
+
+    pub fn camera(&self) -> &CameraDesc {
+        &self.camera
+    }
+
+    pub fn is_animated(&self) -> bool {
+        self.animator.is_animated()
+    }
+
+    /// Samples per pixel in the film.
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// Moves the camera; a different camera restarts accumulation.
+    pub fn set_camera(&mut self, camera: CameraDesc) {
+        if camera != self.camera {
+            self.camera = camera;
+            self.restart();
+        }
+    }
+
+    /// Changes settings; a different builder rebuilds the tree, a different size makes a new
+    /// film, and any change restarts accumulation.
+    pub fn set_settings(&mut self, settings: PipelineSettings) {
+        if settings == self.settings {
+            return;
+        }
+        if settings.builder != self.settings.builder {
+            self.tree_dirty = true;
+            self.dynamic = None;
+        }
+        if (settings.width, settings.height) != (self.settings.width, self.settings.height) {
+            self.film = Film::new(settings.width.max(1), settings.height.max(1));
+        }
+        self.settings = settings;
+        self.restart();
+    }
+
+    /// Throws the accumulated samples away.
+    pub fn restart(&mut self) {
+        self.film.clear();
+        self.samples = 0;
+    }
+
+    /// Renders one frame: advances the animation by `dt` seconds (times the speed) if it is
+    /// playing, rebuilds the tree if anything moved or the builder changed, traces one sample
+    /// per pixel and adds it to the film.
+    pub fn step(&mut self, dt: f32) -> FrameReport {
+        let start = Instant::now();
+        let mut report = FrameReport { frame: self.frame, ..FrameReport::default() };
+        let moved = self.playing && self.speed != 0.0 && self.animator.is_animated();
+        if moved {
+            self.time += dt * self.speed;
+            self.animator.pose(&mut self.geometry, self.time);
+            report.pose_ms = ms_since(start);
+            self.restart();
+        }
+        if moved || self.tree_dirty {
+            self.rebuild(&mut report);
+            self.restart();
+        }
+        let render_start = Instant::now();
+        let (pixels, rays) = self.render();
+        report.render_ms = ms_since(render_start);
+        report.frame_ms = ms_since(start);
+        self.film.add_frame(&pixels);
+        self.samples += 1;
+        self.frame += 1;
+        report.moved = moved;
+        report.time = self.time;
+        report.rays = rays;
+        report.sah_cost = self.sah;
+        report.build_cost = self.build_cost;
+        report.samples = self.samples;
+        report
+    }
+
+    fn rebuild(&mut self, report: &mut FrameReport) {
+        let boxes = &self.geometry.boxes;
+        match self.settings.builder {
+            Builder::Phr(options) => {
+                let refit_start = Instant::now();
+                let dynamic = match &mut self.dynamic {
+                    Some(d) => d,
+                    None => self.dynamic.insert(DynamicBvh::new(boxes, options)),
+                };
+                let created_ms = ms_since(refit_start);
+                let (bvh, timings) = dynamic.update(boxes);
+                report.refit_ms = created_ms + timings.refit.as_secs_f64() * 1e3;
+                let wide_start = Instant::now();
+                self.geometry.set_bvh(bvh);
+                report.build_ms = timings.build.as_secs_f64() * 1e3 + ms_since(wide_start);
+                self.build_cost = timings.build_cost;
+            }
+            builder => {
+                let build_start = Instant::now();
+                let bvh = builder.build(boxes);
+                self.geometry.set_bvh(bvh);
+                report.build_ms = ms_since(build_start);
+                self.build_cost = 0;
+            }
+        }
+        self.sah = sah_cost(&self.geometry.bvh, SahConstants::UNIT);
+        self.tree_dirty = false;
+    }
+
+    /// One sample per pixel in the current view mode; returns the pixels and the rays traced.
+    fn render(&self) -> (Vec<Vec3>, u64) {
+        let s = &self.settings;
+        let renderer = Renderer {
+            tracer: PathTracer {
+                geometry: &self.geometry,
+                materials: &self.scene.materials,
+                background: &self.scene.background,
+                max_depth: s.max_depth.max(1),
+            },
+            camera: Camera::new(&self.camera, s.width, s.height),
+            width: s.width,
+            height: s.height,
+            seed: self.seed,
+        };
+        // While accumulating, the frame number picks new random numbers for every sample;
+        // while animating, it keeps the noise from freezing in place.
+        let frame = self.frame as u32;
+        let geometry = &self.geometry;
+        let (pixels, stats) = match s.mode {
+            ViewMode::Colour => renderer.render_frame(frame),
+            ViewMode::Normals => renderer.render_frame_with(frame, |ray, _| match geometry.intersect(&ray) {
+                Some(hit) => {
+                    let sp = geometry.surface_point(&ray, &hit);
+                    let n = if sp.front { sp.normal } else { -sp.normal };
+                    (0.5 * (n + Vec3::ONE), 1)
+                }
+                None => (Vec3::ZERO, 1),
+            }),
+            ViewMode::Albedo => renderer.render_frame_with(frame, |ray, _| match geometry.intersect(&ray) {
+                Some(hit) => {
+                    let sp = geometry.surface_point(&ray, &hit);
+                    (albedo(&self.scene.materials[sp.material as usize]), 1)
+                }
+                None => (self.scene.background.radiance(ray.dir.normalize()), 1),
+            }),
+            ViewMode::Heatmap => renderer.render_frame_with(frame, |ray, _| {
+                let mut counts = TraversalStats::default();
+                geometry.intersect_counted(&ray, &mut counts);
+                let [r, g, b] = turbo(counts.nodes as f32 / HEATMAP_MAX_STEPS);
+                // turbo() gives display (sRGB) values; the film holds linear ones.
+                let linear = |c: u8| (c as f32 / 255.0).powf(2.2);
+                (Vec3::new(linear(r), linear(g), linear(b)), 1)
+            }),
+        };
+        (pixels, stats.rays)
+    }
+
+    /// The accumulated image (linear radiance, row-major from the top left).
+    pub fn image(&self) -> Vec<Vec3> {
+        self.film.mean()
+    }
+
+    /// The accumulated image as 8-bit sRGB RGBA, for display.
+    pub fn image_rgba8(&self) -> Vec<u8> {
+        let mean = self.film.mean();
+        let mut out = Vec::with_capacity(mean.len() * 4);
+        for p in mean {
+            for c in p.to_array() {
+                out.push((srgb_encode(c).clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
+            }
+            out.push(255);
+        }
+        out
+    }
+}
+
+fn albedo(m: &Material) -> Vec3 {
+    match m {
+        Material::Lambertian { albedo } | Material::Metal { albedo, .. } => *albedo,
+        Material::Dielectric { .. } => Vec3::ONE,
+        Material::Emissive { emit, .. } => *emit / emit.max_element().max(1e-6),
+    }
+}
+
+fn ms_since(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
+}
