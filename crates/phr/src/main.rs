@@ -10,6 +10,7 @@ mod info;
 mod render;
 mod scene_arg;
 mod tune;
+mod view;
 
 use clap::{Parser, Subcommand};
 
@@ -43,6 +44,9 @@ enum Command {
     BenchTune(bench_tune::BenchTuneArgs),
     /// Animate a scene: move vertices, refit the LBVH, rebuild with PHR, render, every frame.
     Animate(animate::AnimateArgs),
+    /// Interactive viewer: path tracing while you move, dynamic scenes, live statistics
+    /// (`--headless` for the same frame loop without a window).
+    View(view::ViewArgs),
 }
 
 fn main() -> ExitCode {
@@ -60,6 +64,7 @@ fn main() -> ExitCode {
         Some(Command::BenchBuild(args)) => bench_build::run(&args),
         Some(Command::BenchCutCost(args)) => bench_cut_cost::run(&args),
         Some(Command::Animate(args)) => animate::run(&args),
+        Some(Command::View(args)) => view::run(&args),
         Some(Command::Tune(args)) => tune::run(&args),
         Some(Command::BenchTune(args)) => bench_tune::run(&args),
         None => {

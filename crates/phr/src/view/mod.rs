@@ -1,0 +1,130 @@
+//! `phr view`: the interactive viewer ([`window`]) and its headless twin ([`headless`]). Both
+//! drive the same [`FramePipeline`] (pose → refit → PHR rebuild → render → accumulate), so a
+//! scripted headless run measures what the window shows.
+
+mod camera_control;
+mod headless;
+mod window;
+
+use crate::scene_arg::{open_scene, BUILTIN};
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use phr_bvh::Builder;
+use phr_render::pipeline::{FramePipeline, PipelineSettings, ViewMode};
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct ViewArgs {
+    /// A scene file (.json), a mesh file, or `builtin`.
+    #[arg(default_value = BUILTIN)]
+    scene: String,
+    /// Run without a window: render --frames frames and write PNGs and frames.csv to --out.
+    #[arg(long)]
+    headless: bool,
+    /// Frames to render (headless mode).
+    #[arg(long, default_value_t = 100)]
+    frames: u64,
+    /// Output folder: headless frames and CSV, and the window's screenshots.
+    #[arg(long, default_value = "view")]
+    out: PathBuf,
+    /// Write every Nth headless frame as PNG (0: none).
+    #[arg(long, default_value_t = 1)]
+    png_every: u64,
+    /// Animation time step per headless frame, in seconds.
+    #[arg(long, default_value_t = 1.0 / 30.0)]
+    dt: f32,
+    #[arg(long, default_value_t = 256)]
+    width: u32,
+    #[arg(long, default_value_t = 256)]
+    height: u32,
+    /// lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah or binned-sah.
+    #[arg(long, default_value = "phr-fast")]
+    builder: Builder,
+    /// Children per node for PHR builders (2 to 16).
+    #[arg(long, default_value_t = 2)]
+    branching: u32,
+    /// Maximum path length (default: the scene's, at most 8).
+    #[arg(long)]
+    max_depth: Option<u32>,
+    #[arg(long, value_enum, default_value = "colour")]
+    mode: ModeArg,
+    /// The scene's named view to start from.
+    #[arg(long)]
+    view: Option<String>,
+    /// Start with the animation paused.
+    #[arg(long)]
+    paused: bool,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum ModeArg {
+    Colour,
+    Normals,
+    Albedo,
+    Heatmap,
+}
+
+impl From<ModeArg> for ViewMode {
+    fn from(m: ModeArg) -> Self {
+        match m {
+            ModeArg::Colour => ViewMode::Colour,
+            ModeArg::Normals => ViewMode::Normals,
+            ModeArg::Albedo => ViewMode::Albedo,
+            ModeArg::Heatmap => ViewMode::Heatmap,
+        }
+    }
+}
+
+pub fn run(args: &ViewArgs) -> Result<()> {
+    let pipeline = open(args)?;
+    if args.headless {
+        return headless::run(args, pipeline);
+    }
+    if !has_display() {
+        eprintln!(
+            "phr view: no display (DISPLAY and WAYLAND_DISPLAY are unset); running headless: {} frames to {}",
+            args.frames,
+            args.out.display()
+        );
+        return headless::run(args, pipeline);
+    }
+    window::run(args, pipeline)
+}
+
+/// Loads the scene and sets the pipeline up as the arguments say.
+fn open(args: &ViewArgs) -> Result<FramePipeline> {
+    let scene = open_scene(&args.scene)?;
+    let camera = scene
+        .view(args.view.as_deref())
+        .with_context(|| format!("no view {:?} (the scene has: {})", args.view, scene.view_names().join(", ")))?;
+    let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;
+    anyhow::ensure!(args.width > 0 && args.height > 0, "image size {}x{} is empty", args.width, args.height);
+    let settings = PipelineSettings {
+        builder,
+        width: args.width,
+        height: args.height,
+        max_depth: args.max_depth.unwrap_or(scene.settings.max_depth.min(8)).max(1),
+        mode: args.mode.into(),
+    };
+    let mut pipeline = FramePipeline::new(scene, settings, camera);
+    pipeline.playing = !args.paused;
+    Ok(pipeline)
+}
+
+fn has_display() -> bool {
+    ["DISPLAY", "WAYLAND_DISPLAY"].iter().any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
+}
+
+/// Resident set size now and at its peak, in MiB, from `/proc/self/status` (Linux; zeros
+/// elsewhere).
+pub fn memory_mib() -> (f64, f64) {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let field = |name: &str| {
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix(name))
+            .and_then(|v| v.split_whitespace().next()?.parse::<f64>().ok())
+            .map_or(0.0, |kib| kib / 1024.0)
+    };
+    (field("VmRSS:"), field("VmHWM:"))
+}

@@ -1,0 +1,145 @@
+//! The viewer window under a virtual X server (Xvfb, Mesa's software OpenGL): it starts,
+//! renders, and simulated input (xdotool: a mouse drag that orbits, the W key that flies)
+//! changes what the window shows. Screenshots are the window's own framebuffer (F12).
+//!
+//! Needs `Xvfb` and `xdotool` (`.ci/run` installs them). Without them the test says so and
+//! passes, except under CI (`CI` set), where it fails.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+struct Kill(Child);
+
+impl Drop for Kill {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn have(tool: &str) -> bool {
+    Command::new("sh")
+        .args(["-c", &format!("command -v {tool}")])
+        .stdout(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+fn wait_for(what: &str, timeout: Duration, mut ready: impl FnMut() -> bool) {
+    let start = Instant::now();
+    while !ready() {
+        assert!(start.elapsed() < timeout, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+fn xdotool(display: &str, args: &[&str]) -> String {
+    let out = Command::new("xdotool").args(args).env("DISPLAY", display).output().expect("xdotool");
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The rendered image's part of a window screenshot (right of the 280-pixel side panel), as
+/// luminance values.
+fn image_region(path: &Path) -> Vec<f32> {
+    let img = image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())).to_rgb8();
+    let (w, h) = img.dimensions();
+    let mut out = Vec::new();
+    for y in 0..h {
+        for x in 300.min(w)..w {
+            let p = img.get_pixel(x, y).0;
+            out.push(0.2126 * p[0] as f32 + 0.7152 * p[1] as f32 + 0.0722 * p[2] as f32);
+        }
+    }
+    out
+}
+
+fn mean_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.len().max(1) as f32
+}
+
+fn std_dev(a: &[f32]) -> f32 {
+    let mean = a.iter().sum::<f32>() / a.len() as f32;
+    (a.iter().map(|x| (x - mean) * (x - mean)).sum::<f32>() / a.len() as f32).sqrt()
+}
+
+#[test]
+fn viewer_renders_and_follows_input_under_xvfb() {
+    if !have("Xvfb") || !have("xdotool") {
+        assert!(std::env::var_os("CI").is_none(), "CI must have Xvfb and xdotool (.ci/run installs them)");
+        eprintln!("skipped: Xvfb or xdotool not installed");
+        return;
+    }
+    let n = 90 + std::process::id() % 100;
+    let display = format!(":{n}");
+    let _xvfb = Kill(
+        Command::new("Xvfb")
+            .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start Xvfb"),
+    );
+    wait_for("Xvfb", Duration::from_secs(10), || Path::new(&format!("/tmp/.X11-unix/X{n}")).exists());
+
+    let out: PathBuf = std::env::temp_dir().join(format!("phr-viewer-xvfb-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let _viewer = Kill(
+        Command::new(env!("CARGO_BIN_EXE_phr"))
+            .args(["view", "builtin", "--width", "128", "--height", "128", "--out"])
+            .arg(&out)
+            .env("DISPLAY", &display)
+            .env("LIBGL_ALWAYS_SOFTWARE", "1")
+            .env_remove("WAYLAND_DISPLAY")
+            .stdout(Stdio::null())
+            .spawn()
+            .expect("start phr view"),
+    );
+    let mut window = String::new();
+    wait_for("the viewer window", Duration::from_secs(60), || {
+        window = xdotool(&display, &["search", "--name", "^phr"]).lines().next().unwrap_or("").to_string();
+        !window.is_empty()
+    });
+    // Let the window map and the worker start before giving it focus and keys.
+    std::thread::sleep(Duration::from_secs(2));
+    xdotool(&display, &["windowfocus", "--sync", &window]);
+    let screenshot = |k: u32| {
+        xdotool(&display, &["key", "F12"]);
+        let path = out.join(format!("window-{k:03}.png"));
+        wait_for(&format!("screenshot {k}"), Duration::from_secs(30), || path.is_file());
+        path
+    };
+    // Let it accumulate, then two screenshots of the still view: their difference is noise.
+    std::thread::sleep(Duration::from_secs(1));
+    let still_a = image_region(&screenshot(0));
+    std::thread::sleep(Duration::from_secs(1));
+    let still_b = image_region(&screenshot(1));
+    assert!(std_dev(&still_a) > 10.0, "the image is blank (std dev {})", std_dev(&still_a));
+
+    // Orbit with a drag across the image, and fly forward with W.
+    let geometry = xdotool(&display, &["getwindowgeometry", "--shell", &window]);
+    let field = |name: &str| {
+        geometry.lines().find_map(|l| l.strip_prefix(name)).and_then(|v| v.parse::<i32>().ok()).expect("geometry")
+    };
+    let (x, y, w, h) = (field("X="), field("Y="), field("WIDTH="), field("HEIGHT="));
+    let (cx, cy) = (x + 300 + (w - 300) / 2, y + h / 2);
+    let at = |dx: i32| format!("{}", cx + dx);
+    let cy = format!("{cy}");
+    xdotool(&display, &["mousemove", &at(-60), &cy, "mousedown", "1"]);
+    for dx in [-30, 0, 30, 60, 90] {
+        xdotool(&display, &["mousemove", &at(dx), &cy]);
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    xdotool(&display, &["mouseup", "1"]);
+    xdotool(&display, &["keydown", "w"]);
+    std::thread::sleep(Duration::from_millis(400));
+    xdotool(&display, &["keyup", "w"]);
+    std::thread::sleep(Duration::from_secs(2));
+    let moved = image_region(&screenshot(2));
+
+    let noise = mean_abs_diff(&still_a, &still_b);
+    let change = mean_abs_diff(&still_b, &moved);
+    assert!(std_dev(&moved) > 10.0, "the image went blank after input");
+    assert!(change > 8.0 && change > 3.0 * noise, "input did not change the view: {change} vs noise {noise}");
+    let _ = std::fs::remove_dir_all(&out);
+}
