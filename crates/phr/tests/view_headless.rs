@@ -108,3 +108,21 @@ fn no_display_falls_back_to_headless() {
     assert_eq!(rows(&out).len(), 3);
     std::fs::remove_dir_all(&out).unwrap();
 }
+
+#[test]
+fn unusable_display_falls_back_to_headless() {
+    let out = std::env::temp_dir().join(format!("phr-view-baddisplay-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let output = Command::new(env!("CARGO_BIN_EXE_phr"))
+        .args(["view", "--frames", "2", "--width", "16", "--height", "16", "--out"])
+        .arg(&out)
+        .env("DISPLAY", ":64999")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(stderr.contains("cannot open a window"), "{stderr}");
+    assert_eq!(rows(&out).len(), 2);
+    std::fs::remove_dir_all(&out).unwrap();
+}

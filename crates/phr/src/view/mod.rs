@@ -88,7 +88,18 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         );
         return headless::run(args, pipeline);
     }
-    window::run(args, pipeline)
+    match window::run(args, pipeline) {
+        Err(window::WindowError::Start(e)) => {
+            eprintln!(
+                "phr view: cannot open a window ({e}); running headless: {} frames to {}",
+                args.frames,
+                args.out.display()
+            );
+            headless::run(args, open(args)?)
+        }
+        Err(window::WindowError::Other(e)) => Err(e),
+        Ok(()) => Ok(()),
+    }
 }
 
 /// Loads the scene and sets the pipeline up as the arguments say.

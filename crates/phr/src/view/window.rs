@@ -13,7 +13,7 @@
 
 use super::camera_control::CameraControl;
 use super::ViewArgs;
-use anyhow::{anyhow, Result};
+use anyhow::anyhow;
 use eframe::egui;
 use glam::Vec3;
 use phr_bvh::phr::PhrOptions;
@@ -114,8 +114,16 @@ struct Shared {
     published: Mutex<Published>,
 }
 
-pub fn run(args: &ViewArgs, pipeline: FramePipeline) -> Result<()> {
-    std::fs::create_dir_all(&args.out).map_err(|e| anyhow!("creating {}: {e}", args.out.display()))?;
+/// Why the viewer stopped with an error.
+pub enum WindowError {
+    /// No window could be opened (no usable display or OpenGL): the caller may go headless.
+    Start(String),
+    Other(anyhow::Error),
+}
+
+pub fn run(args: &ViewArgs, pipeline: FramePipeline) -> Result<(), WindowError> {
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| WindowError::Other(anyhow!("creating {}: {e}", args.out.display())))?;
     let scene = pipeline.scene();
     let views: Vec<(String, CameraDesc)> = scene.views.clone();
     let size = scene.bounds().extent().length();
@@ -178,7 +186,7 @@ pub fn run(args: &ViewArgs, pipeline: FramePipeline) -> Result<()> {
     };
     let result = eframe::run_native("phr", options, Box::new(|_cc| Ok(Box::new(app))));
     shared.controls.lock().expect("controls").quit = true;
-    result.map_err(|e| anyhow!("cannot open the viewer window: {e}"))
+    result.map_err(|e| WindowError::Start(e.to_string()))
 }
 
 struct ViewerApp {
