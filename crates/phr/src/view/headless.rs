@@ -6,13 +6,36 @@ use super::{memory_mib, ViewArgs};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_render::output::{write_atomically, write_image};
-use phr_render::pipeline::{FramePipeline, FrameReport};
+use phr_render::pipeline::FramePipeline;
 use std::io::Write;
-use std::path::Path;
 
 pub fn run(args: &ViewArgs, mut pipeline: FramePipeline) -> Result<()> {
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let csv_path = args.out.join("frames.csv");
+    // Rows stream to a temporary file renamed into place at the end (no partial CSV on
+    // failure), so a long soak holds no per-frame data beyond a few floats.
+    write_atomically(&csv_path, |tmp| {
+        let mut csv = std::io::BufWriter::new(std::fs::File::create(tmp)?);
+        let summary = frames(args, &mut pipeline, &mut csv).map_err(std::io::Error::other)?;
+        csv.flush()?;
+        print_summary(args, &pipeline, &summary);
+        Ok(())
+    })
+    .with_context(|| format!("writing {}", csv_path.display()))?;
+    println!("wrote {}", csv_path.display());
+    Ok(())
+}
+
+/// What the summary needs of each frame: pose, refit, build, render, frame ms, Mrays/s.
+type Times = [f32; 6];
+
+struct Summary {
+    times: Vec<Times>,
+    peak_rss_at_100: f64,
+    peak_rss_at_end: f64,
+}
+
+fn frames(args: &ViewArgs, pipeline: &mut FramePipeline, csv: &mut impl Write) -> Result<Summary> {
     let progress = ProgressBar::new(args.frames);
     progress.set_style(
         ProgressStyle::with_template("{spinner} {msg} [{bar:30}] {pos}/{len} frames, {per_sec}")
@@ -20,91 +43,83 @@ pub fn run(args: &ViewArgs, mut pipeline: FramePipeline) -> Result<()> {
             .progress_chars("=> "),
     );
     let (width, height) = (pipeline.settings().width, pipeline.settings().height);
-    let mut rows = Vec::with_capacity(args.frames as usize);
+    writeln!(
+        csv,
+        "frame,time_s,moved,pose_ms,refit_ms,build_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,rss_mib,peak_rss_mib"
+    )?;
+    let mut summary =
+        Summary { times: Vec::with_capacity(args.frames as usize), peak_rss_at_100: 0.0, peak_rss_at_end: 0.0 };
     for frame in 0..args.frames {
-        let report = pipeline.step(args.dt);
+        let r = pipeline.step(args.dt);
         if args.png_every > 0 && frame % args.png_every == 0 {
             let path = args.out.join(format!("frame{frame:05}.png"));
             write_image(&path, width, height, &pipeline.image())
                 .with_context(|| format!("writing {}", path.display()))?;
         }
         let (rss, peak) = memory_mib();
-        progress.set_message(format!("{:.1} ms/frame, {rss:.0} MiB", report.frame_ms));
+        writeln!(
+            csv,
+            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{:.1},{:.1}",
+            r.frame,
+            r.time,
+            r.moved as u8,
+            r.pose_ms,
+            r.refit_ms,
+            r.build_ms,
+            r.render_ms,
+            r.frame_ms,
+            r.rays,
+            r.mrays_per_s(),
+            r.sah_cost,
+            r.build_cost,
+            r.samples,
+            rss,
+            peak
+        )?;
+        summary
+            .times
+            .push([r.pose_ms, r.refit_ms, r.build_ms, r.render_ms, r.frame_ms, r.mrays_per_s()].map(|x| x as f32));
+        if frame < 100 {
+            summary.peak_rss_at_100 = peak;
+        }
+        summary.peak_rss_at_end = peak;
+        progress.set_message(format!("{:.1} ms/frame, {rss:.0} MiB", r.frame_ms));
         progress.inc(1);
-        rows.push((report, rss, peak));
     }
     progress.finish_and_clear();
-    write_csv(&csv_path, &rows).with_context(|| format!("writing {}", csv_path.display()))?;
-    print_summary(args, &pipeline, &rows);
-    println!("wrote {}", csv_path.display());
-    Ok(())
+    Ok(summary)
 }
 
-fn print_summary(args: &ViewArgs, pipeline: &FramePipeline, rows: &[(FrameReport, f64, f64)]) {
+fn print_summary(args: &ViewArgs, pipeline: &FramePipeline, summary: &Summary) {
     // The first frame builds the auxiliary tree from scratch; the steady state is the rest.
-    let steady: Vec<&FrameReport> = rows.iter().skip(1).map(|(r, _, _)| r).collect();
-    let steady = if steady.is_empty() { rows.iter().map(|(r, _, _)| r).collect() } else { steady };
-    let median = |f: fn(&FrameReport) -> f64| {
-        let mut v: Vec<f64> = steady.iter().map(|r| f(r)).collect();
-        v.sort_by(f64::total_cmp);
+    let steady = if summary.times.len() > 1 { &summary.times[1..] } else { &summary.times[..] };
+    let median = |k: usize| {
+        let mut v: Vec<f32> = steady.iter().map(|t| t[k]).collect();
+        v.sort_by(f32::total_cmp);
         v.get(v.len() / 2).copied().unwrap_or(0.0)
     };
-    let frame_ms = median(|r| r.frame_ms);
+    let frame_ms = median(4);
     println!(
         "{} frames of {} ({} triangles, {}x{}, 1 spp, {}): median pose {:.2} ms + refit {:.2} ms + build {:.2} ms + render {:.2} ms = frame {:.2} ms ({:.1} fps), {:.1} Mrays/s",
-        rows.len(),
+        summary.times.len(),
         args.scene,
         pipeline.geometry().triangles.len(),
         pipeline.settings().width,
         pipeline.settings().height,
         pipeline.settings().builder,
-        median(|r| r.pose_ms),
-        median(|r| r.refit_ms),
-        median(|r| r.build_ms),
-        median(|r| r.render_ms),
+        median(0),
+        median(1),
+        median(2),
+        median(3),
         frame_ms,
         1e3 / frame_ms.max(1e-9),
-        median(FrameReport::mrays_per_s),
+        median(5),
     );
-    if let (Some(first), Some(last)) = (rows.get(99.min(rows.len() - 1)), rows.last()) {
-        println!(
-            "peak RSS: {:.1} MiB at frame {}, {:.1} MiB at frame {}",
-            first.2,
-            first.0.frame + 1,
-            last.2,
-            last.0.frame + 1
-        );
-    }
-}
-
-fn write_csv(path: &Path, rows: &[(FrameReport, f64, f64)]) -> std::io::Result<()> {
-    write_atomically(path, |tmp| {
-        let mut f = std::io::BufWriter::new(std::fs::File::create(tmp)?);
-        writeln!(
-            f,
-            "frame,time_s,moved,pose_ms,refit_ms,build_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,rss_mib,peak_rss_mib"
-        )?;
-        for (r, rss, peak) in rows {
-            writeln!(
-                f,
-                "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{:.1},{:.1}",
-                r.frame,
-                r.time,
-                r.moved as u8,
-                r.pose_ms,
-                r.refit_ms,
-                r.build_ms,
-                r.render_ms,
-                r.frame_ms,
-                r.rays,
-                r.mrays_per_s(),
-                r.sah_cost,
-                r.build_cost,
-                r.samples,
-                rss,
-                peak
-            )?;
-        }
-        f.flush()
-    })
+    println!(
+        "peak RSS: {:.1} MiB after {} frames, {:.1} MiB after {}",
+        summary.peak_rss_at_100,
+        summary.times.len().min(100),
+        summary.peak_rss_at_end,
+        summary.times.len()
+    );
 }
