@@ -222,7 +222,7 @@ mod tests {
             let r = RayPre::new(ray);
             let mut t = [0.0; 8];
             let mask = node_scalar(&node, &r, ray.tmax, &mut t);
-            for i in 0..8 {
+            for (i, &ti) in t.iter().enumerate() {
                 let expected = node.child_bounds(i).intersect(ray);
                 let hit = mask >> i & 1 == 1;
                 if i >= 5 {
@@ -230,7 +230,7 @@ mod tests {
                 } else {
                     assert_eq!(hit, expected != f32::INFINITY, "slot {i} {ray:?}");
                     if hit {
-                        assert_eq!(t[i].to_bits(), expected.to_bits(), "slot {i} {ray:?}");
+                        assert_eq!(ti.to_bits(), expected.to_bits(), "slot {i} {ray:?}");
                     }
                 }
             }
