@@ -9,7 +9,7 @@ use common::*;
 use glam::Vec3;
 use phr_bvh::node::Node;
 use phr_bvh::triangle::intersect_triangle;
-use phr_bvh::wide::{Lanes, Width};
+use phr_bvh::wide::{CollapseOptions, Lanes, Width};
 use phr_bvh::{refit, validate, Builder, Bvh, PackedTriangles, Ray, SimdLevel, WideBvh};
 
 fn builders() -> Vec<Builder> {
@@ -62,13 +62,28 @@ fn check_wide<const N: usize>(bvh: &Bvh, tris: &[[Vec3; 3]], rays: &[Ray], what:
 where
     Lanes<N>: Width<N>,
 {
+    check_wide_with::<N>(bvh, tris, rays, what, CollapseOptions::default())
+        + check_wide_with::<N>(bvh, tris, rays, &format!("{what} (source leaves)"), CollapseOptions::KEEP_LEAVES)
+}
+
+fn check_wide_with<const N: usize>(
+    bvh: &Bvh,
+    tris: &[[Vec3; 3]],
+    rays: &[Ray],
+    what: &str,
+    options: CollapseOptions,
+) -> usize
+where
+    Lanes<N>: Width<N>,
+{
     let boxes = triangle_boxes(tris);
-    let mut wide = WideBvh::<N>::from_bvh(bvh);
+    let mut wide = WideBvh::<N>::from_bvh_with(bvh, options);
     wide.validate(&boxes).unwrap_or_else(|e| panic!("{what}, wide-{N}: {e}"));
-    let packed = PackedTriangles::new(&wide.prim_indices, tris);
+    let mut packed = PackedTriangles::new(&wide.prim_indices, tris);
     let mut hits = 0;
     for level in SimdLevel::supported() {
         wide.set_simd(level);
+        packed.set_simd(level);
         assert_eq!(wide.simd(), level);
         let what = format!("{what}, wide-{N} {}", level.name());
         for (i, ray) in rays.iter().enumerate() {
@@ -78,7 +93,9 @@ where
             assert_eq!(packed_hit, expected, "{what}: packed triangles, ray {i} {ray:?}");
             if let Some((p, h)) = wide.closest_triangle(&packed, ray) {
                 let [a, b, c] = tris[p as usize];
-                assert_eq!(Some(h), intersect_triangle(ray, a, b, c), "{what}: t/u/v bits, ray {i}");
+                let scalar = intersect_triangle(ray, a, b, c).expect("the scalar test hits too");
+                let bits = |h: phr_bvh::triangle::TriangleHit| [h.t.to_bits(), h.u.to_bits(), h.v.to_bits()];
+                assert_eq!(bits(h), bits(scalar), "{what}: t/u/v bits, ray {i}");
             }
             assert_eq!(wide_hit_closure(&wide, tris, ray), expected, "{what}: closure path, ray {i} {ray:?}");
             assert_eq!(wide.any_triangle(&packed, ray), expected.is_some(), "{what}: any hit, ray {i} {ray:?}");
@@ -137,8 +154,8 @@ fn collapse_fills_the_slots() {
     let boxes = triangle_boxes(&tris);
     let bvh = Builder::PHR_HQ.build(&boxes);
     let leaves = bvh.nodes.iter().filter(|n| n.is_leaf()).count();
-    let w4 = WideBvh::<4>::from_bvh(&bvh);
-    let w8 = WideBvh::<8>::from_bvh(&bvh);
+    let w4 = WideBvh::<4>::from_bvh_with(&bvh, CollapseOptions::KEEP_LEAVES);
+    let w8 = WideBvh::<8>::from_bvh_with(&bvh, CollapseOptions::KEEP_LEAVES);
     assert_eq!(w4.leaf_count(), leaves);
     assert_eq!(w8.leaf_count(), leaves);
     assert!(w4.mean_fill() > 2.8, "wide-4 fill {}", w4.mean_fill());
@@ -203,4 +220,70 @@ fn validate_catches_broken_wide_trees() {
     let mut broken = wide.clone();
     broken.prim_indices[1] = broken.prim_indices[0];
     assert!(broken.validate(&boxes).is_err());
+}
+
+/// Merged leaves: at most 4 primitives (unless a source leaf was larger), each starting at a
+/// block boundary; fewer nodes than without merging.
+#[test]
+fn merged_leaves_are_small_and_aligned() {
+    let tris = random_soup(20_000, 1.0, &mut Rng::new(12));
+    let boxes = triangle_boxes(&tris);
+    let bvh = phr_bvh::build_lbvh(&boxes, phr_bvh::LbvhOptions { max_leaf_size: 1 });
+    let merged = WideBvh::<8>::from_bvh(&bvh);
+    let kept = WideBvh::<8>::from_bvh_with(&bvh, CollapseOptions::KEEP_LEAVES);
+    merged.validate(&boxes).unwrap();
+    assert!(merged.nodes.len() < kept.nodes.len(), "{} vs {} nodes", merged.nodes.len(), kept.nodes.len());
+    for n in &merged.nodes {
+        for s in 0..8 {
+            if n.count[s] > 0 {
+                assert!(n.count[s] <= 4);
+                assert_eq!(n.child[s] % 4, 0);
+            }
+        }
+    }
+}
+
+/// The 4-lane triangle test gives the scalar test's bits on random, degenerate, huge, tiny
+/// and grazing triangles, hits and misses alike (compared through `leaf_hits`).
+#[test]
+fn packed_block_test_is_bit_identical_to_scalar() {
+    let mut rng = Rng::new(77);
+    let mut tris = Vec::new();
+    for (_, mesh) in adversarial_meshes() {
+        tris.extend(mesh.into_iter().take(300));
+    }
+    let prims: Vec<u32> = (0..tris.len() as u32).collect();
+    let mut simd = PackedTriangles::new(&prims, &tris);
+    let mut scalar = simd.clone();
+    scalar.set_simd(SimdLevel::Scalar);
+    simd.set_simd(SimdLevel::detect());
+    let bounds = triangle_boxes(&tris).iter().fold(phr_bvh::Aabb::EMPTY, |a, b| a.union(*b));
+    let mut rays = random_rays(bounds, 300, &mut rng);
+    // Rays at the triangles, some grazing their planes.
+    for t in tris.iter().step_by(7) {
+        let target = (t[0] + t[1] + t[2]) / 3.0;
+        let o = target + rng.unit_vector() * 2.0;
+        rays.push(Ray::new(o, (target - o).normalize_or(Vec3::X)));
+        let along = (t[1] - t[0]).normalize_or(Vec3::X);
+        rays.push(Ray::new(target - along, along));
+    }
+    let mut hits = 0;
+    for ray in &rays {
+        for first in (0..tris.len() as u32).step_by(4) {
+            let count = (tris.len() as u32 - first).min(4);
+            let collect = |p: &PackedTriangles| {
+                let mut r = *ray;
+                let mut out = Vec::new();
+                p.leaf_hits(first, count, &mut r, |i, h, _| {
+                    out.push((i, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()));
+                    false
+                });
+                out
+            };
+            let a = collect(&scalar);
+            assert_eq!(collect(&simd), a, "ray {ray:?}, block at {first}");
+            hits += a.len();
+        }
+    }
+    assert!(hits > 100, "only {hits} hits");
 }

@@ -10,16 +10,44 @@
 //!    (the one a random ray is most likely to enter) is replaced by its two children. The
 //!    node's slots then get the resulting boxes; interior ones become wide nodes in turn.
 //!
-//! Leaves are not split or merged. Wide nodes are stored depth-first, the children of a node
-//! consecutively; leaf primitives are renumbered in the order the leaves are written, so each
-//! leaf is a contiguous range of [`super::WideBvh::prim_indices`].
+//! 3. **Leaves.** A subtree with at most [`CollapseOptions::merge_leaves`] primitives becomes
+//!    one leaf (as Embree's leaves of 4 triangles: [`super::PackedTriangles`] tests 4
+//!    triangles with one SIMD Möller–Trumbore, so a leaf of 4 costs about what a leaf of 1
+//!    does, and the nodes above the small leaves disappear). Larger source leaves are kept.
+//!
+//! Wide nodes are stored depth-first, the children of a node consecutively; leaf primitives
+//! are renumbered in the order the leaves are written, so each leaf is a contiguous range of
+//! [`super::WideBvh::prim_indices`]. Each leaf starts at a multiple of
+//! [`CollapseOptions::leaf_align`] (the gaps hold [`PAD`]), so a leaf of up to 4 triangles is
+//! one 4-lane block of the packed triangles.
 
-use super::WideNode;
+use super::{WideNode, PAD};
 use crate::aabb::Aabb;
 use crate::node::Bvh;
 
 /// A node of the binary view: a leaf (`count > 0`, a range of the source's `prim_indices`)
 /// or an interior node with children `a` and `b`.
+/// How to collapse.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CollapseOptions {
+    /// Subtrees with at most this many primitives become one leaf (1: keep the source's).
+    pub merge_leaves: u32,
+    /// Leaves start at multiples of this in `prim_indices` (1: no padding).
+    pub leaf_align: u32,
+}
+
+impl Default for CollapseOptions {
+    /// Leaves of up to 4 primitives, aligned to the 4-lane triangle blocks.
+    fn default() -> Self {
+        Self { merge_leaves: 4, leaf_align: super::triangles::LANES as u32 }
+    }
+}
+
+impl CollapseOptions {
+    /// Keep the source tree's leaves, no padding.
+    pub const KEEP_LEAVES: CollapseOptions = CollapseOptions { merge_leaves: 1, leaf_align: 1 };
+}
+
 #[derive(Clone, Copy, Debug)]
 struct Bin {
     bounds: Aabb,
@@ -28,6 +56,8 @@ struct Bin {
     b: u32,
     first: u32,
     count: u32,
+    /// Primitives in the subtree.
+    prims: u32,
 }
 
 impl Bin {
@@ -45,7 +75,7 @@ enum Task {
 
 /// The binary view of `src`, root at index 0.
 fn binary_view(src: &Bvh) -> Vec<Bin> {
-    let placeholder = Bin { bounds: Aabb::EMPTY, area: 0.0, a: 0, b: 0, first: 0, count: 0 };
+    let placeholder = Bin { bounds: Aabb::EMPTY, area: 0.0, a: 0, b: 0, first: 0, count: 0, prims: 0 };
     let mut bins = Vec::with_capacity(src.nodes.len() + src.nodes.len() / 2);
     bins.push(placeholder);
     let mut work = vec![(Task::Node(0), 0usize)];
@@ -65,6 +95,7 @@ fn binary_view(src: &Bvh) -> Vec<Bin> {
                         b: 0,
                         first: n.first,
                         count: n.count,
+                        prims: n.count,
                     };
                     continue;
                 }
@@ -83,11 +114,32 @@ fn binary_view(src: &Bvh) -> Vec<Bin> {
         };
         let [left, right] = children;
         let (a, b) = (new_bin(&mut bins), new_bin(&mut bins));
-        bins[slot] = Bin { bounds, area: bounds.surface_area(), a: a as u32, b: b as u32, first: 0, count: 0 };
+        bins[slot] =
+            Bin { bounds, area: bounds.surface_area(), a: a as u32, b: b as u32, first: 0, count: 0, prims: 0 };
         work.push((right, b));
         work.push((left, a));
     }
+    // Children come after their parents: count primitives bottom-up.
+    for i in (0..bins.len()).rev() {
+        if !bins[i].is_leaf() {
+            bins[i].prims = bins[bins[i].a as usize].prims + bins[bins[i].b as usize].prims;
+        }
+    }
     bins
+}
+
+/// Appends the primitives of the subtree at `b` (in tree order) to `out`.
+fn subtree_prims(bins: &[Bin], src: &Bvh, b: u32, out: &mut Vec<u32>) {
+    let mut stack = vec![b];
+    while let Some(i) = stack.pop() {
+        let bin = &bins[i as usize];
+        if bin.is_leaf() {
+            out.extend_from_slice(&src.prim_indices[bin.first as usize..(bin.first + bin.count) as usize]);
+        } else {
+            stack.push(bin.b);
+            stack.push(bin.a);
+        }
+    }
 }
 
 /// Splits at least two sibling source nodes into two non-empty groups by a SAH sweep; a
@@ -127,12 +179,42 @@ fn sah_split(src: &Bvh, mut members: Vec<u32>) -> (Task, Task) {
 /// Collapses `src` into `N`-wide nodes; returns the nodes, the primitive indices in leaf
 /// order and the traversal stack bound (the largest number of entries the ordered traversal
 /// can have on its stack: along any root-to-node path, the sum of `children - 1`).
-pub(crate) fn collapse<const N: usize>(src: &Bvh) -> (Vec<WideNode<N>>, Vec<u32>, usize) {
+pub(crate) fn collapse<const N: usize>(src: &Bvh, options: CollapseOptions) -> (Vec<WideNode<N>>, Vec<u32>, usize) {
     assert!(N >= 2, "a wide node needs at least two slots");
+    let align = options.leaf_align.max(1) as usize;
     if src.nodes.is_empty() {
         return (Vec::new(), Vec::new(), 0);
     }
-    let bins = binary_view(src);
+    let mut bins = binary_view(src);
+    // Small subtrees become leaves: mark them (count > 0) and remember where their
+    // primitives are, in a second reference array.
+    let mut merged: Vec<u32> = Vec::new();
+    let merged_base = src.prim_indices.len() as u32;
+    if options.merge_leaves > 1 {
+        let mut stack = vec![0u32];
+        while let Some(i) = stack.pop() {
+            let bin = bins[i as usize];
+            if bin.is_leaf() {
+                continue;
+            }
+            if bin.prims <= options.merge_leaves {
+                let first = merged.len() as u32;
+                subtree_prims(&bins, src, i, &mut merged);
+                bins[i as usize].first = merged_base + first;
+                bins[i as usize].count = bin.prims;
+            } else {
+                stack.push(bin.a);
+                stack.push(bin.b);
+            }
+        }
+    }
+    let refs = |first: u32, count: u32| -> &[u32] {
+        if first >= merged_base {
+            &merged[(first - merged_base) as usize..(first - merged_base + count) as usize]
+        } else {
+            &src.prim_indices[first as usize..(first + count) as usize]
+        }
+    };
     let mut nodes = Vec::with_capacity(src.nodes.len() / (N - 1) + 1);
     nodes.push(WideNode::<N>::EMPTY);
     let mut prims = Vec::with_capacity(src.prim_indices.len());
@@ -169,10 +251,10 @@ pub(crate) fn collapse<const N: usize>(src: &Bvh) -> (Vec<WideNode<N>>, Vec<u32>
             let kid_bin = &bins[kid as usize];
             node.set_child_bounds(slot, kid_bin.bounds);
             if kid_bin.is_leaf() {
+                prims.resize(prims.len().next_multiple_of(align), PAD);
                 node.child[slot] = prims.len() as u32;
                 node.count[slot] = kid_bin.count;
-                let range = kid_bin.first as usize..(kid_bin.first + kid_bin.count) as usize;
-                prims.extend_from_slice(&src.prim_indices[range]);
+                prims.extend_from_slice(refs(kid_bin.first, kid_bin.count));
             } else {
                 node.child[slot] = nodes.len() as u32;
                 work.push((kid, nodes.len(), depth));

@@ -62,12 +62,17 @@
 pub mod collapse;
 pub mod simd;
 mod traverse;
-mod triangles;
+pub mod triangles;
 
 pub use triangles::PackedTriangles;
 
+pub use collapse::CollapseOptions;
+
 use crate::node::Bvh;
 use crate::ray::Ray;
+
+/// The filler of [`WideBvh::prim_indices`] between leaves (see [`CollapseOptions::leaf_align`]).
+pub const PAD: u32 = u32::MAX;
 
 /// Which box-test kernel a [`WideBvh`] uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -169,7 +174,7 @@ impl<const N: usize> WideNode<N> {
 pub struct WideBvh<const N: usize> {
     pub nodes: Vec<WideNode<N>>,
     /// The caller's primitive indices in leaf order: a leaf child `(first, count)` holds
-    /// `prim_indices[first..first + count]`.
+    /// `prim_indices[first..first + count]`. Between leaves there may be [`PAD`] entries.
     pub prim_indices: Vec<u32>,
     /// An upper bound of the traversal stack's depth (computed by the collapse).
     pub(crate) stack_bound: usize,
@@ -203,10 +208,16 @@ impl<const N: usize> WideBvh<N>
 where
     Lanes<N>: Width<N>,
 {
-    /// Collapses `bvh` (binary or k-ary, any builder) into a wide tree; see [`collapse`].
-    /// Uses the best [`SimdLevel`] of this CPU.
+    /// Collapses `bvh` (binary or k-ary, any builder) into a wide tree with the default
+    /// [`CollapseOptions`] (leaves of up to 4 primitives); see [`collapse`]. Uses the best
+    /// [`SimdLevel`] of this CPU.
     pub fn from_bvh(bvh: &Bvh) -> Self {
-        let (nodes, prim_indices, stack_bound) = collapse::collapse::<N>(bvh);
+        Self::from_bvh_with(bvh, CollapseOptions::default())
+    }
+
+    /// [`WideBvh::from_bvh`] with explicit options.
+    pub fn from_bvh_with(bvh: &Bvh, options: CollapseOptions) -> Self {
+        let (nodes, prim_indices, stack_bound) = collapse::collapse::<N>(bvh, options);
         Self { nodes, prim_indices, stack_bound, simd: SimdLevel::detect() }
     }
 
@@ -227,8 +238,9 @@ where
         self
     }
 
+    /// Primitives referenced (without padding).
     pub fn prim_count(&self) -> usize {
-        self.prim_indices.len()
+        self.prim_indices.iter().filter(|&&p| p != PAD).count()
     }
 
     /// Closest hit, the primitive test called per leaf: `leaf(first, count, ray)` must test
@@ -297,8 +309,9 @@ impl<const N: usize> WideBvh<N> {
         if self.nodes.is_empty() {
             return if boxes.is_empty() { Ok(()) } else { Err(format!("{} primitives but no nodes", boxes.len())) };
         }
-        if self.prim_indices.len() != boxes.len() {
-            return Err(format!("{} primitive references for {} primitives", self.prim_indices.len(), boxes.len()));
+        let refs = self.prim_indices.iter().filter(|&&p| p != PAD).count();
+        if refs != boxes.len() {
+            return Err(format!("{refs} primitive references for {} primitives", boxes.len()));
         }
         let mut seen_node = vec![false; self.nodes.len()];
         let mut seen_ref = vec![false; self.prim_indices.len()];
@@ -348,7 +361,11 @@ impl<const N: usize> WideBvh<N> {
                         if std::mem::replace(&mut seen_ref[r], true) {
                             return Err(format!("primitive reference {r} in two leaves"));
                         }
-                        let p = self.prim_indices[r] as usize;
+                        let p = self.prim_indices[r];
+                        if p == PAD {
+                            return Err(format!("node {i} slot {s}: padding inside a leaf"));
+                        }
+                        let p = p as usize;
                         let seen = seen_prim.get_mut(p).ok_or(format!("primitive {p} out of range"))?;
                         if std::mem::replace(seen, true) {
                             return Err(format!("primitive {p} in more than one leaf"));
