@@ -149,6 +149,9 @@ where
                 }
                 for &key in keys[1..k].iter().rev() {
                     let i = (key & 0xff) as usize;
+                    if node.count[i] == 0 {
+                        prefetch_node(nodes, node.child[i]);
+                    }
                     // SAFETY: the stack holds `stack_bound + 1` entries and the collapse
                     // bounds the entries on the stack by `stack_bound` (see
                     // `collapse::collapse`).
@@ -185,6 +188,22 @@ where
             }
         }
     }
+}
+
+/// Asks for the box rows of node `i` (popped later) to be loaded into the cache.
+#[inline(always)]
+fn prefetch_node<const N: usize>(nodes: &[WideNode<N>], i: u32) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = nodes.as_ptr().wrapping_add(i as usize).cast::<i8>();
+        for line in 0..std::mem::size_of::<WideNode<N>>() / 64 {
+            // SAFETY: prefetching is a hint and never faults, whatever the address.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (nodes, i);
 }
 
 /// AVX2 entry points: the whole loop compiled with AVX2 enabled, so the kernel inlines.
