@@ -101,6 +101,10 @@ struct SceneInfo {
     collapse8_ms: f64,
     embree_build_ms: Option<f64>,
     simd: SimdLevel,
+    /// Wide-8 nodes and packed triangles, MB; and the triangle blocks' fill.
+    wide8_mb: f64,
+    packed8_mb: f64,
+    block_fill: f64,
 }
 
 fn suite_dir() -> Result<PathBuf> {
@@ -168,6 +172,19 @@ fn incoherent_rays(bounds: Aabb, count: usize) -> Vec<Ray> {
         .collect()
 }
 
+/// Closest hit over every triangle (lowest index wins ties).
+fn brute_force(tris: &[[Vec3; 3]], ray: &Ray) -> Option<(u32, f32)> {
+    let mut best: Option<(u32, f32)> = None;
+    for (i, [a, b, c]) in tris.iter().enumerate() {
+        if let Some(h) = intersect_triangle(ray, *a, *b, *c) {
+            if best.is_none_or(|(_, t)| h.t < t) {
+                best = Some((i as u32, h.t));
+            }
+        }
+    }
+    best
+}
+
 /// The reference: binary ordered traversal, scalar Möller–Trumbore, lowest index wins ties.
 #[inline]
 fn binary_hit(bvh: &Bvh, tris: &[[Vec3; 3]], ray: &Ray) -> Option<(u32, f32)> {
@@ -218,7 +235,7 @@ fn measure_scene(path: &Path, args: &BenchRaysArgs, progress: &ProgressBar) -> R
     let camera = Camera::new(&view, args.res, args.res);
     let mut geometry = Geometry::new(&scene);
     if !geometry.spheres.is_empty() {
-        progress.println(format!("{name}: {} spheres are left out (triangles only)", geometry.spheres.len()));
+        note(progress, format!("{name}: {} spheres are left out (triangles only)", geometry.spheres.len()));
     }
     let tris = geometry.triangles.clone();
     let boxes: Vec<Aabb> = geometry.boxes[..tris.len()].to_vec();
@@ -259,9 +276,29 @@ fn measure_scene(path: &Path, args: &BenchRaysArgs, progress: &ProgressBar) -> R
         progress.set_message(format!("{name}: {kind} rays, checking hits"));
         let reference: Vec<Option<(u32, f32)>> = rays.par_iter().map(|r| binary_hit(&bvh, &tris, r)).collect();
         let check = |variant: &str, got: Vec<Option<(u32, f32)>>| -> Result<()> {
-            let bad = got.iter().zip(&reference).filter(|(a, b)| a != b).count();
-            if bad > 0 {
-                bail!("{name} {kind}: {variant} differs from the binary reference on {bad} rays");
+            // A difference is only allowed where the binary reference itself misses the
+            // brute-force hit: a hit accepted by the triangle test's edge tolerance just
+            // outside the triangle's box, which a merged leaf's larger box may contain.
+            for i in (0..got.len()).filter(|&i| got[i] != reference[i]) {
+                let brute = brute_force(&tris, &rays[i]);
+                if got[i] != brute {
+                    bail!(
+                        "{name} {kind}: {variant} differs from the binary reference and from brute force, \
+                         ray {:?}: {:?}, reference {:?}, brute force {:?}",
+                        rays[i],
+                        got[i],
+                        reference[i],
+                        brute
+                    );
+                }
+                note(
+                    progress,
+                    format!(
+                        "{name} {kind}: {variant} finds the brute-force hit {:?} that the binary reference misses \
+                     ({:?}), ray {:?}",
+                        brute, reference[i], rays[i]
+                    ),
+                );
             }
             Ok(())
         };
@@ -320,18 +357,16 @@ fn measure_scene(path: &Path, args: &BenchRaysArgs, progress: &ProgressBar) -> R
                     wide8.closest_hit_leaves_counted(
                         &mut ray,
                         |first, count, r| {
-                            let mut hit = false;
-                            for i in first..first + count {
-                                if let Some(h) = packed8.intersect(i, r) {
-                                    let p = wide8.prim_indices[i as usize];
-                                    if h.t < r.tmax || best.is_none_or(|bp| p < bp) {
-                                        r.tmax = h.t;
-                                        best = Some(p);
-                                        hit = true;
-                                    }
+                            packed8.leaf_hits(first, count, r, |i, h, r| {
+                                let p = wide8.prim_indices[i as usize];
+                                if h.t < r.tmax || best.is_none_or(|bp| p < bp) {
+                                    r.tmax = h.t;
+                                    best = Some(p);
+                                    true
+                                } else {
+                                    false
                                 }
-                            }
-                            hit
+                            })
                         },
                         &mut s,
                     );
@@ -391,16 +426,19 @@ fn measure_scene(path: &Path, args: &BenchRaysArgs, progress: &ProgressBar) -> R
                     row.embree_agreement = k["hit_agreement"].as_f64();
                 }
             }
-            Ok(o) => progress.println(format!(
-                "{name}: Embree skipped: {}{}",
-                String::from_utf8_lossy(&o.stdout).trim(),
-                String::from_utf8_lossy(&o.stderr).trim()
-            )),
-            Err(e) => progress.println(format!("{name}: Embree skipped, cannot run python3: {e}")),
+            Ok(o) => note(
+                progress,
+                format!(
+                    "{name}: Embree skipped: {}{}",
+                    String::from_utf8_lossy(&o.stdout).trim(),
+                    String::from_utf8_lossy(&o.stderr).trim()
+                ),
+            ),
+            Err(e) => note(progress, format!("{name}: Embree skipped, cannot run python3: {e}")),
         }
         let _ = std::fs::remove_dir_all(&dir);
     } else if !args.no_embree {
-        progress.println("Embree skipped: bench/embree_rays.py not found (run from the repository)");
+        note(progress, "Embree skipped: bench/embree_rays.py not found (run from the repository)".into());
     }
     let info = SceneInfo {
         scene: name,
@@ -410,8 +448,17 @@ fn measure_scene(path: &Path, args: &BenchRaysArgs, progress: &ProgressBar) -> R
         collapse8_ms,
         embree_build_ms,
         simd: wide8.simd(),
+        wide8_mb: (wide8.nodes.len() * std::mem::size_of::<phr_bvh::wide::WideNode<8>>()) as f64 / 1e6,
+        packed8_mb: (packed8.blocks.len() * std::mem::size_of::<phr_bvh::wide::triangles::TriangleBlock>()) as f64
+            / 1e6,
+        block_fill: tris.len() as f64 / (packed8.blocks.len() * phr_bvh::wide::triangles::LANES).max(1) as f64,
     };
     Ok((info, rows))
+}
+
+/// A message above the progress bar (also when it is hidden, as in a pipe).
+fn note(progress: &ProgressBar, message: String) {
+    progress.suspend(|| eprintln!("{message}"));
 }
 
 fn write_counted(path: &Path, count: usize, floats: impl Iterator<Item = f32>) -> Result<()> {
@@ -463,16 +510,19 @@ fn markdown(infos: &[SceneInfo], rows: &[Row], threads: &[usize], args: &BenchRa
         args.rays,
         infos.first().map_or("-", |i| i.simd.name())
     );
-    s += "| scene | triangles | build ms | collapse-4 ms | collapse-8 ms | Embree build ms |\n|---|---:|---:|---:|---:|---:|\n";
+    s += "| scene | triangles | build ms | collapse-4 ms | collapse-8 ms | Embree build ms | wide-8 nodes MB | triangles MB | block fill |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for i in infos {
         s += &format!(
-            "| {} | {} | {:.1} | {:.1} | {:.1} | {} |\n",
+            "| {} | {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.2} |\n",
             i.scene,
             i.triangles,
             i.build_ms,
             i.collapse4_ms,
             i.collapse8_ms,
-            i.embree_build_ms.map_or("-".into(), |x| format!("{x:.1}"))
+            i.embree_build_ms.map_or("-".into(), |x| format!("{x:.1}")),
+            i.wide8_mb,
+            i.packed8_mb,
+            i.block_fill
         );
     }
     for &t in threads {
