@@ -422,6 +422,9 @@ fn measure_scene(path: &Path, args: &BenchRaysArgs, progress: &ProgressBar) -> R
                         if let Some(m) = k["mrays_per_s"][t.to_string()].as_f64() {
                             row.mrays.insert(("embree".to_string(), t), m);
                         }
+                        if let Some(m) = k["robust_mrays_per_s"][t.to_string()].as_f64() {
+                            row.mrays.insert(("embree-robust".to_string(), t), m);
+                        }
                     }
                     row.embree_agreement = k["hit_agreement"].as_f64();
                 }
@@ -503,7 +506,8 @@ fn markdown(infos: &[SceneInfo], rows: &[Row], threads: &[usize], args: &BenchRa
     s += &format!(
         "# phr bench-rays\n\nClosest-hit Mrays/s (best of {}), builder {}, primary rays {}², {} incoherent rays. \
          `binary`: scalar binary traversal (the reference); `wide4`/`wide8`: wide BVH, SIMD level `{}`; \
-         Embree: embreex `rtcIntersect1` loop, T threads = T processes. Ratio: best of wide4/wide8 over Embree.\n\n",
+         Embree: embreex `rtcIntersect1` loop, T threads = T processes, default scene flags and \
+         `robust=True` (conservative traversal, like ours). Ratio: best of wide4/wide8 over Embree.\n\n",
         args.repeats,
         args.builder,
         args.res,
@@ -527,21 +531,24 @@ fn markdown(infos: &[SceneInfo], rows: &[Row], threads: &[usize], args: &BenchRa
     }
     for &t in threads {
         s += &format!(
-            "\n## {t} thread(s)\n\n| scene | rays | binary | wide4 | wide8 | Embree | ours/Embree | wide8/binary |\n|---|---|---:|---:|---:|---:|---:|---:|\n"
+            "\n## {t} thread(s)\n\n| scene | rays | binary | wide4 | wide8 | Embree | Embree robust | ours/Embree | ours/Embree robust | wide8/binary |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n"
         );
         for r in rows {
             let best = get(r, "wide4", t).unwrap_or(0.0).max(get(r, "wide8", t).unwrap_or(0.0));
             let ratio = get(r, "embree", t).map(|e| best / e);
+            let ratio_robust = get(r, "embree-robust", t).map(|e| best / e);
             let speedup = get(r, "binary", t).map(|b| get(r, "wide8", t).unwrap_or(0.0) / b);
             s += &format!(
-                "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
                 r.scene,
                 r.kind,
                 fmt(get(r, "binary", t)),
                 fmt(get(r, "wide4", t)),
                 fmt(get(r, "wide8", t)),
                 fmt(get(r, "embree", t)),
+                fmt(get(r, "embree-robust", t)),
                 fmt(ratio),
+                fmt(ratio_robust),
                 fmt(speedup)
             );
         }
@@ -576,7 +583,7 @@ fn write_csv(path: &Path, rows: &[Row], threads: &[usize]) -> std::io::Result<()
         )?;
         for r in rows {
             for &t in threads {
-                for v in VARIANTS.iter().copied().chain(["embree"]) {
+                for v in VARIANTS.iter().copied().chain(["embree", "embree-robust"]) {
                     let Some(m) = get(r, v, t) else { continue };
                     writeln!(
                         f,

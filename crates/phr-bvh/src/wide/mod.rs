@@ -25,10 +25,11 @@
 //!   while they fit in `N` slots. (Not the SAH-optimal dynamic-programming collapse; the
 //!   greedy one is linear-time and within a few per cent of it in the literature.) Nodes with
 //!   more than two children (PHR's multi-BVHs) are first regrouped into binary subtrees by a
-//!   small SAH sweep over their children, so every builder's tree can be collapsed. Leaves
-//!   are kept as they are; their primitives are renumbered in leaf order
-//!   ([`WideBvh::prim_indices`]) so that each leaf is one contiguous range, which lets
-//!   [`PackedTriangles`] store the triangles of a leaf next to each other.
+//!   small SAH sweep over their children, so every builder's tree can be collapsed. Subtrees
+//!   of at most 4 primitives become one leaf ([`CollapseOptions`]); primitives are renumbered
+//!   in leaf order ([`WideBvh::prim_indices`]) so that each leaf is one contiguous range
+//!   starting at a multiple of 4, which lets [`PackedTriangles`] store a leaf's triangles as
+//!   one 4-lane block.
 //! - [`simd`]: the ray-versus-`N`-boxes kernels: scalar (any target), SSE (4 lanes; two halves
 //!   for 8) and AVX2 (8 lanes), chosen by [`SimdLevel`] once per tree (runtime feature
 //!   detection in [`SimdLevel::detect`]), not per ray.
@@ -38,8 +39,13 @@
 //!   (with the same `ROBUST_SLAB` slack as the binary traversal). Any-hit stops at the first
 //!   hit.
 //! - [`PackedTriangles`]: triangles in leaf order with `v0, e1 = v1 - v0, e2 = v2 - v0`
-//!   precomputed, tested with [`crate::triangle::intersect_triangle_edges`], the body of
-//!   [`crate::triangle::intersect_triangle`], so hits are bit-identical to the reference.
+//!   precomputed, structure-of-arrays in blocks of 4, tested 4 at a time by an SSE
+//!   Möller–Trumbore that performs [`crate::triangle::intersect_triangle`]'s operations in
+//!   the same order (no FMA), so `t`, `u`, `v` are bit-identical to the reference; a scalar
+//!   path ([`crate::triangle::intersect_triangle_edges`]) serves other targets and tests.
+//!   The primitive test stays pluggable: [`WideBvh::closest_hit_leaves`] takes any leaf
+//!   closure (the renderer uses the packed test for triangles and its own for spheres), and
+//!   [`WideBvh::closest_hit`] a per-primitive one like the binary traversal.
 //!
 //! # Exactness
 //!
