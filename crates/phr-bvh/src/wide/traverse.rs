@@ -129,6 +129,20 @@ where
                     cur = Entry { child: node.child[i], count: node.count[i], t: t[i] };
                     continue;
                 }
+                let rest = mask & (mask - 1);
+                if rest & (rest - 1) == 0 {
+                    // Two children (the common case): push the farther, visit the nearer.
+                    let (a, b) = (mask.trailing_zeros() as usize, rest.trailing_zeros() as usize);
+                    let (near, far) = if t[b] < t[a] { (b, a) } else { (a, b) };
+                    if node.count[far] == 0 {
+                        prefetch_node(nodes, node.child[far]);
+                    }
+                    // SAFETY: as for the general case below.
+                    unsafe { stack.add(sp).write(Entry { child: node.child[far], count: node.count[far], t: t[far] }) };
+                    sp += 1;
+                    cur = Entry { child: node.child[near], count: node.count[near], t: t[near] };
+                    continue;
+                }
                 // Several children: sort by entry distance. Entry distances are >= tmin;
                 // for tmin >= 0 their bit patterns order like the floats (a negative tmin
                 // only changes the visit order, never the result).
