@@ -182,12 +182,16 @@ impl Geometry {
         if self.spheres.is_empty() {
             // Triangles only: whole leaves at once (4-lane Möller–Trumbore, same bits).
             let prims = &self.wide.prim_indices;
-            self.wide.closest_hit_leaves(&mut r, |first, count, r| {
-                self.packed.leaf_hits(first, count, r, |i, h, r| {
-                    let hit = Hit { t: h.t, prim: prims[i as usize], u: h.u, v: h.v };
-                    Self::keep_closest(Some(hit), r, &mut best)
-                })
-            });
+            self.wide.closest_hit_leaves_prefetch(
+                &mut r,
+                |i| self.packed.prefetch(i),
+                |first, count, r| {
+                    self.packed.leaf_hits(first, count, r, |i, h, r| {
+                        let hit = Hit { t: h.t, prim: prims[i as usize], u: h.u, v: h.v };
+                        Self::keep_closest(Some(hit), r, &mut best)
+                    })
+                },
+            );
         } else {
             self.wide.closest_hit_leaves(&mut r, |first, count, r| {
                 let mut hit = false;

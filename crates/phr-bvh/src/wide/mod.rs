@@ -255,7 +255,21 @@ where
     #[inline]
     pub fn closest_hit_leaves(&self, ray: &mut Ray, leaf: impl FnMut(u32, u32, &mut Ray) -> bool) -> bool {
         let mut stats = WideStats::default();
-        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, false, _>(self, ray, leaf, &mut stats)
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, false, _, _>(self, ray, leaf, |_| {}, &mut stats)
+    }
+
+    /// [`WideBvh::closest_hit_leaves`] with a prefetch hint: `prefetch(first)` is called when
+    /// a leaf is pushed on the stack (to be tested later), so the caller can ask for its
+    /// primitive data to be loaded meanwhile.
+    #[inline]
+    pub fn closest_hit_leaves_prefetch(
+        &self,
+        ray: &mut Ray,
+        prefetch: impl Fn(u32),
+        leaf: impl FnMut(u32, u32, &mut Ray) -> bool,
+    ) -> bool {
+        let mut stats = WideStats::default();
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, false, _, _>(self, ray, leaf, prefetch, &mut stats)
     }
 
     /// [`WideBvh::closest_hit_leaves`], also counting nodes, leaves and primitives.
@@ -266,7 +280,7 @@ where
         leaf: impl FnMut(u32, u32, &mut Ray) -> bool,
         stats: &mut WideStats,
     ) -> bool {
-        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, true, _>(self, ray, leaf, stats)
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, true, _, _>(self, ray, leaf, |_| {}, stats)
     }
 
     /// Closest hit with a per-primitive test, like [`crate::traverse::closest_hit`]:
@@ -288,10 +302,11 @@ where
     pub fn any_hit_leaves(&self, ray: &Ray, mut leaf: impl FnMut(u32, u32, &Ray) -> bool) -> bool {
         let mut r = *ray;
         let mut stats = WideStats::default();
-        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<true, false, _>(
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<true, false, _, _>(
             self,
             &mut r,
             |first, count, r: &mut Ray| leaf(first, count, r),
+            |_| {},
             &mut stats,
         )
     }

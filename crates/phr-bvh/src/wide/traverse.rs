@@ -87,14 +87,16 @@ impl Kernel<8> for Avx2Kernel {
 /// The CPU must support `K`'s instructions; `bvh` must be a tree made by the collapse (child
 /// indices in range, stack bound correct).
 #[inline(always)]
-unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, F>(
+unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, F, P>(
     bvh: &WideBvh<N>,
     ray: &mut Ray,
     mut leaf: F,
+    prefetch: P,
     stats: &mut WideStats,
 ) -> bool
 where
     F: FnMut(u32, u32, &mut Ray) -> bool,
+    P: Fn(u32),
 {
     let nodes = &bvh.nodes;
     if nodes.is_empty() {
@@ -136,6 +138,8 @@ where
                     let (near, far) = if t[b] < t[a] { (b, a) } else { (a, b) };
                     if node.count[far] == 0 {
                         prefetch_node(nodes, node.child[far]);
+                    } else {
+                        prefetch(node.child[far]);
                     }
                     // SAFETY: as for the general case below.
                     unsafe { stack.add(sp).write(Entry { child: node.child[far], count: node.count[far], t: t[far] }) };
@@ -165,6 +169,8 @@ where
                     let i = (key & 0xff) as usize;
                     if node.count[i] == 0 {
                         prefetch_node(nodes, node.child[i]);
+                    } else {
+                        prefetch(node.child[i]);
                     }
                     // SAFETY: the stack holds `stack_bound + 1` entries and the collapse
                     // bounds the entries on the stack by `stack_bound` (see
@@ -226,28 +232,30 @@ fn prefetch_node<const N: usize>(nodes: &[WideNode<N>], i: u32) {
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn run_avx2_8<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool>(
+unsafe fn run_avx2_8<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
     bvh: &WideBvh<8>,
     ray: &mut Ray,
     leaf: F,
+    prefetch: P,
     stats: &mut WideStats,
 ) -> bool {
     // SAFETY: AVX2 is enabled here, which the caller guarantees the CPU has.
-    unsafe { run::<8, Avx2Kernel, ANY, COUNT, F>(bvh, ray, leaf, stats) }
+    unsafe { run::<8, Avx2Kernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) }
 }
 
 /// # Safety
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn run_avx2_4<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool>(
+unsafe fn run_avx2_4<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
     bvh: &WideBvh<4>,
     ray: &mut Ray,
     leaf: F,
+    prefetch: P,
     stats: &mut WideStats,
 ) -> bool {
     // SAFETY: SSE is baseline; AVX2 (VEX encoding) is what the caller guarantees.
-    unsafe { run::<4, SseKernel, ANY, COUNT, F>(bvh, ray, leaf, stats) }
+    unsafe { run::<4, SseKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) }
 }
 
 pub mod sealed {
@@ -255,10 +263,11 @@ pub mod sealed {
 
     /// Dispatch from a [`SimdLevel`] to the kernels of one width.
     pub trait Sealed<const N: usize> {
-        fn run<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool>(
+        fn run<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
             bvh: &WideBvh<N>,
             ray: &mut Ray,
             leaf: F,
+            prefetch: P,
             stats: &mut WideStats,
         ) -> bool;
     }
@@ -266,39 +275,41 @@ pub mod sealed {
 
 impl sealed::Sealed<4> for Lanes<4> {
     #[inline]
-    fn run<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool>(
+    fn run<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
         bvh: &WideBvh<4>,
         ray: &mut Ray,
         leaf: F,
+        prefetch: P,
         stats: &mut WideStats,
     ) -> bool {
         match bvh.simd() {
             // SAFETY (all arms): `WideBvh::set_simd` never selects a level the CPU lacks, and
             // the tree comes from the collapse.
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Avx2 => unsafe { run_avx2_4::<ANY, COUNT, F>(bvh, ray, leaf, stats) },
+            SimdLevel::Avx2 => unsafe { run_avx2_4::<ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Sse => unsafe { run::<4, SseKernel, ANY, COUNT, F>(bvh, ray, leaf, stats) },
-            _ => unsafe { run::<4, ScalarKernel, ANY, COUNT, F>(bvh, ray, leaf, stats) },
+            SimdLevel::Sse => unsafe { run::<4, SseKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
+            _ => unsafe { run::<4, ScalarKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
         }
     }
 }
 
 impl sealed::Sealed<8> for Lanes<8> {
     #[inline]
-    fn run<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool>(
+    fn run<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
         bvh: &WideBvh<8>,
         ray: &mut Ray,
         leaf: F,
+        prefetch: P,
         stats: &mut WideStats,
     ) -> bool {
         match bvh.simd() {
             // SAFETY (all arms): as for width 4.
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Avx2 => unsafe { run_avx2_8::<ANY, COUNT, F>(bvh, ray, leaf, stats) },
+            SimdLevel::Avx2 => unsafe { run_avx2_8::<ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Sse => unsafe { run::<8, SseKernel, ANY, COUNT, F>(bvh, ray, leaf, stats) },
-            _ => unsafe { run::<8, ScalarKernel, ANY, COUNT, F>(bvh, ray, leaf, stats) },
+            SimdLevel::Sse => unsafe { run::<8, SseKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
+            _ => unsafe { run::<8, ScalarKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
         }
     }
 }
