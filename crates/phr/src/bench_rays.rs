@@ -503,11 +503,13 @@ fn fmt(x: Option<f64>) -> String {
 
 fn markdown(infos: &[SceneInfo], rows: &[Row], threads: &[usize], args: &BenchRaysArgs) -> String {
     let mut s = String::new();
+    let command: Vec<String> = std::env::args().collect();
     s += &format!(
-        "# phr bench-rays\n\nClosest-hit Mrays/s (best of {}), builder {}, primary rays {}², {} incoherent rays. \
+        "# phr bench-rays\n\nCommand: `{}` (release build).\n\nClosest-hit Mrays/s (best of {}), builder {}, primary rays {}², {} incoherent rays. \
          `binary`: scalar binary traversal (the reference); `wide4`/`wide8`: wide BVH, SIMD level `{}`; \
          Embree: embreex `rtcIntersect1` loop, T threads = T processes, default scene flags and \
          `robust=True` (conservative traversal, like ours). Ratio: best of wide4/wide8 over Embree.\n\n",
+        command.join(" "),
         args.repeats,
         args.builder,
         args.res,
