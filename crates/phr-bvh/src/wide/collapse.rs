@@ -75,6 +75,9 @@ enum Task {
 
 /// The binary view of `src`, root at index 0.
 fn binary_view(src: &Bvh) -> Vec<Bin> {
+    if src.max_branching() <= 2 {
+        return binary_view_of_binary(src);
+    }
     let placeholder = Bin { bounds: Aabb::EMPTY, area: 0.0, a: 0, b: 0, first: 0, count: 0, prims: 0 };
     let mut bins = Vec::with_capacity(src.nodes.len() + src.nodes.len() / 2);
     bins.push(placeholder);
@@ -140,6 +143,34 @@ fn subtree_prims(bins: &[Bin], src: &Bvh, b: u32, out: &mut Vec<u32>) {
             stack.push(bin.a);
         }
     }
+}
+
+/// The binary view of a binary tree: the same nodes at the same indices (children always
+/// follow their parent, so one backward pass counts the primitives).
+fn binary_view_of_binary(src: &Bvh) -> Vec<Bin> {
+    use rayon::prelude::*;
+    let mut bins: Vec<Bin> = src
+        .nodes
+        .par_iter()
+        .map(|n| {
+            let (first, count) = if n.is_leaf() { (n.first, n.count) } else { (0, 0) };
+            Bin {
+                bounds: n.bounds,
+                area: n.bounds.surface_area(),
+                a: n.first,
+                b: n.first + 1,
+                first,
+                count,
+                prims: count,
+            }
+        })
+        .collect();
+    for i in (0..bins.len()).rev() {
+        if !bins[i].is_leaf() {
+            bins[i].prims = bins[bins[i].a as usize].prims + bins[bins[i].b as usize].prims;
+        }
+    }
+    bins
 }
 
 /// Splits at least two sibling source nodes into two non-empty groups by a SAH sweep; a
