@@ -65,13 +65,14 @@
 //! traces the same rays through the binary reference, wide-4 and wide-8, and Embree (embreex,
 //! single-ray `rtcIntersect1`). On this 2-core AVX2 machine, one thread, PHR-HQ trees: wide-8
 //! is 2.1–3.5× the binary traversal and faster than wide-4 on every scene and ray kind (so the
-//! renderer uses 8); against Embree it reaches 0.65–1.0× (incoherent rays: 0.65× on the
-//! 871k-triangle dragon, 0.93× on the conference room; 0.73–1.12× against Embree's robust
+//! renderer uses 8); against Embree it reaches 0.67–0.98× (incoherent rays: 0.67× on the
+//! 871k-triangle dragon, 0.76–0.88× on the others; 0.66–1.06× against Embree's robust
 //! mode). What helped, in order: the wide nodes and SIMD box test (about 2×), merging small
 //! subtrees into 4-triangle leaves tested with one 4-lane Möller–Trumbore (+10–20 %),
-//! prefetching the nodes pushed on the stack (+10 % on the dragon), a sort-free path for two
-//! hit children (a few %). What did not: 2 MB pages for the node and triangle arrays, leaves
-//! of up to 8, more aggressive inlining. About half of the time is traversal, and on the
+//! prefetching the nodes pushed on the stack and a node's child line on entry (+10–15 % on
+//! the dragon), a sort-free path for two hit children (a few %). What did not: 2 MB pages
+//! for the node and triangle arrays, leaves of up to 8, more aggressive inlining, other
+//! builders (binned and sweep SAH give the same ratios). About half of the time is traversal, and on the
 //! dragon it is bound by memory latency (64 MB of nodes and triangles, ~6 dependent node
 //! loads per ray); compressed (quantised) nodes, as in Embree's and Ylitie et al.'s wide
 //! BVHs, are the next step.
