@@ -16,6 +16,9 @@
 //! [`sah::LeafPolicy`], so their SAH costs ([`metrics::sah_cost`]) compare.
 //!
 //! Primitive tests for the common cases: [`triangle`] (Möller–Trumbore), [`sphere`].
+//!
+//! For tracing speed, [`wide`] collapses any tree into a 4- or 8-wide BVH traversed with SIMD
+//! box tests, with triangles packed in leaf order ([`wide::PackedTriangles`]).
 
 pub mod aabb;
 pub mod binned_sah;
@@ -37,6 +40,7 @@ mod topdown;
 pub mod traverse;
 pub mod triangle;
 pub mod validate;
+pub mod wide;
 
 pub use aabb::Aabb;
 pub use builder::Builder;
@@ -47,3 +51,4 @@ pub use ray::Ray;
 pub use refit::refit;
 pub use traverse::{any_hit, closest_hit, closest_hit_counted, TraversalStats};
 pub use validate::validate;
+pub use wide::{PackedTriangles, SimdLevel, WideBvh};

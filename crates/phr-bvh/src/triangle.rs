@@ -37,8 +37,14 @@ pub struct TriangleHit {
 /// Degenerate (zero-area) triangles have a zero determinant and are never hit.
 #[inline(always)]
 pub fn intersect_triangle(ray: &Ray, v0: Vec3, v1: Vec3, v2: Vec3) -> Option<TriangleHit> {
-    let e1 = v1 - v0;
-    let e2 = v2 - v0;
+    intersect_triangle_edges(ray, v0, v1 - v0, v2 - v0)
+}
+
+/// [`intersect_triangle`] with the edges `e1 = v1 - v0` and `e2 = v2 - v0` precomputed (as
+/// [`crate::wide::PackedTriangles`] stores them). Both run this one body, so their hits are
+/// bit-identical.
+#[inline(always)]
+pub fn intersect_triangle_edges(ray: &Ray, v0: Vec3, e1: Vec3, e2: Vec3) -> Option<TriangleHit> {
     let p = ray.dir.cross(e2);
     let det = e1.dot(p);
     if det == 0.0 || !det.is_finite() {

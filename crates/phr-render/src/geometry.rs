@@ -5,11 +5,18 @@
 //! primitives at exactly the same distance, as at a shared edge) go to the lower primitive
 //! index, so the hit, and hence the image, does not depend on the tree's visit order: every
 //! builder gives the same image for the same seed.
+//!
+//! Rendering traces through a wide BVH ([`phr_bvh::wide`]) collapsed from the builder's tree
+//! whenever the tree is set ([`Geometry::build`], [`Geometry::set_bvh`]), with the triangles
+//! packed in its leaf order: width 8, the faster of 4 and 8 on every shared scene in
+//! `phr bench-rays`. The tree is private so that the wide copy can never be stale; the
+//! counting query for heatmaps ([`Geometry::intersect_counted`]) keeps the binary reference
+//! traversal, whose node counts are the thesis's traversal steps.
 
 use crate::scene::{Scene, SphereObject};
 use glam::Vec3;
 use phr_bvh::triangle::{intersect_triangle, triangle_normal};
-use phr_bvh::{closest_hit, closest_hit_counted, Aabb, Bvh, Ray, TraversalStats};
+use phr_bvh::{closest_hit_counted, Aabb, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
 
 /// A closest hit: distance, primitive, and barycentrics for triangles.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -38,8 +45,15 @@ pub struct Geometry {
     pub triangle_material: Vec<u32>,
     pub spheres: Vec<SphereObject>,
     pub boxes: Vec<Aabb>,
-    pub bvh: Bvh,
+    /// The builder's tree (binary or k-ary).
+    bvh: Bvh,
+    /// `bvh` collapsed to [`WIDTH`] children, and the triangles in its leaf order.
+    wide: WideBvh<WIDTH>,
+    packed: PackedTriangles,
 }
+
+/// The width of the wide BVH the renderer traces (see the module documentation).
+pub const WIDTH: usize = 8;
 
 /// Secondary-ray offsets, relative to `1 + max|p|` (see `shared/reference/README.md`): a few
 /// hundred float32 ulps for triangles, whose hit points come from barycentrics and are
@@ -65,6 +79,8 @@ impl Geometry {
             spheres: scene.spheres.clone(),
             boxes: Vec::new(),
             bvh: Bvh::default(),
+            wide: WideBvh::default(),
+            packed: PackedTriangles::default(),
         };
         g.update_boxes();
         g
@@ -88,9 +104,31 @@ impl Geometry {
         self.set_bvh(bvh);
     }
 
-    /// Uses `bvh`, built elsewhere over the current boxes (the dynamic pipeline's PHR tree).
+    /// Sets the BVH (built over [`Geometry::boxes`] of the current triangles) and derives the
+    /// wide tree and the packed triangles the queries use. Call it again after the triangles
+    /// move.
     pub fn set_bvh(&mut self, bvh: Bvh) {
+        self.wide = WideBvh::from_bvh(&bvh);
+        self.packed = PackedTriangles::new(&self.wide.prim_indices, &self.triangles);
         self.bvh = bvh;
+    }
+
+    /// The builder's tree.
+    pub fn bvh(&self) -> &Bvh {
+        &self.bvh
+    }
+
+    /// Takes the tree out (leaving an empty one: nothing is hit until the next
+    /// [`Geometry::set_bvh`]).
+    pub fn take_bvh(&mut self) -> Bvh {
+        self.wide = WideBvh::default();
+        self.packed = PackedTriangles::default();
+        std::mem::take(&mut self.bvh)
+    }
+
+    /// The wide tree the queries trace.
+    pub fn wide_bvh(&self) -> &WideBvh<WIDTH> {
+        &self.wide
     }
 
     #[inline(always)]
@@ -104,6 +142,28 @@ impl Geometry {
             let s = &self.spheres[prim as usize - self.triangles.len()].sphere;
             s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0 })
         };
+        Self::keep_closest(hit, ray, best)
+    }
+
+    /// [`Geometry::test_prim`] for entry `i` of the wide tree's leaf order: triangles from
+    /// the packed copy (bit-identical hits), spheres as before.
+    #[inline(always)]
+    fn test_packed(&self, i: u32, ray: &mut Ray, best: &mut Option<Hit>) -> bool {
+        let prim = self.wide.prim_indices[i as usize];
+        let probe = &*ray;
+        let hit = if (prim as usize) < self.triangles.len() {
+            self.packed.intersect(i, probe).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v })
+        } else {
+            let s = &self.spheres[prim as usize - self.triangles.len()].sphere;
+            s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0 })
+        };
+        Self::keep_closest(hit, ray, best)
+    }
+
+    /// The tie rule: a hit closer than `ray.tmax`, or at exactly `ray.tmax` with a lower
+    /// primitive index than the best so far, becomes the best.
+    #[inline(always)]
+    fn keep_closest(hit: Option<Hit>, ray: &mut Ray, best: &mut Option<Hit>) -> bool {
         match hit {
             Some(h) if h.t < ray.tmax || best.is_none_or(|b| h.prim < b.prim) => {
                 ray.tmax = h.t;
@@ -119,7 +179,28 @@ impl Geometry {
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let mut r = *ray;
         let mut best = None;
-        closest_hit(&self.bvh, &mut r, |p, r| self.test_prim(p, r, &mut best));
+        if self.spheres.is_empty() {
+            // Triangles only: whole leaves at once (4-lane Möller–Trumbore, same bits).
+            let prims = &self.wide.prim_indices;
+            self.wide.closest_hit_leaves_prefetch(
+                &mut r,
+                |i| self.packed.prefetch(i),
+                |first, count, r| {
+                    self.packed.leaf_hits(first, count, r, |i, h, r| {
+                        let hit = Hit { t: h.t, prim: prims[i as usize], u: h.u, v: h.v };
+                        Self::keep_closest(Some(hit), r, &mut best)
+                    })
+                },
+            );
+        } else {
+            self.wide.closest_hit_leaves(&mut r, |first, count, r| {
+                let mut hit = false;
+                for i in first..first + count {
+                    hit |= self.test_packed(i, r, &mut best);
+                }
+                hit
+            });
+        }
         best
     }
 

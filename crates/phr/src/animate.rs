@@ -114,7 +114,7 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
             render_ms,
             frame_ms: animate_ms + refit_ms + build_ms + render_ms,
             build_cost: timings.build_cost,
-            sah: sah_cost(&geometry.bvh, SahConstants::UNIT),
+            sah: sah_cost(geometry.bvh(), SahConstants::UNIT),
             mrays: stats.rays as f64 / render_ms / 1e3,
         };
         progress.set_message(format!("{:.1} ms/frame", row.frame_ms));

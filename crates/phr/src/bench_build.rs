@@ -186,7 +186,7 @@ fn measure(
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
     let (aux_ms, build_ms, total_ms) = (ms(report.aux_time), ms(report.build_time), ms(report.total_time()));
     let build_cost = report.phr.map(|s| s.build_cost);
-    geometry.bvh = report.bvh;
+    geometry.set_bvh(report.bvh);
     let primary_mrays = throughput(geometry, &rays.primary);
     let diffuse_mrays = throughput(geometry, &rays.diffuse);
     let (diffuse_nodes_per_ray, diffuse_prims_per_ray) = traversal_work(geometry, &rays.diffuse);
@@ -198,8 +198,8 @@ fn measure(
         aux_ms,
         build_ms,
         total_ms,
-        sah_11: sah_cost(&geometry.bvh, SahConstants::UNIT),
-        sah_21: sah_cost(&geometry.bvh, SahConstants::THESIS),
+        sah_11: sah_cost(geometry.bvh(), SahConstants::UNIT),
+        sah_21: sah_cost(geometry.bvh(), SahConstants::THESIS),
         build_cost,
         primary_mrays,
         diffuse_mrays,

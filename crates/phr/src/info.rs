@@ -28,7 +28,7 @@ pub fn run(args: &InfoArgs) -> Result<()> {
     let mut geometry = Geometry::new(&scene);
     let report = builder.build_timed(&geometry.boxes);
     let build = crate::render::describe_build(&builder, &report);
-    geometry.bvh = report.bvh;
+    geometry.set_bvh(report.bvh);
     let b = scene.bounds();
     println!("scene       {}", args.scene);
     println!("load        {load_ms:.1} ms");
@@ -43,17 +43,17 @@ pub fn run(args: &InfoArgs) -> Result<()> {
     );
     let s = &scene.settings;
     println!("settings    {}x{}, {} spp, max depth {}", s.width, s.height, s.spp, s.max_depth);
-    let t = tree_stats(&geometry.bvh);
+    let t = tree_stats(geometry.bvh());
     println!("builder     {build}");
-    println!("nodes       {} ({} leaves, up to {} children)", t.nodes, t.leaves, geometry.bvh.max_branching());
+    println!("nodes       {} ({} leaves, up to {} children)", t.nodes, t.leaves, geometry.bvh().max_branching());
     println!("depth       max {}, mean leaf depth {:.1}", t.max_depth, t.mean_leaf_depth);
     println!("leaf size   max {}, mean {:.2}", t.max_leaf_size, t.mean_leaf_size);
     println!(
         "SAH cost    {:.3} (ct=1, ci=1)   {:.3} (ct=2, ci=1, thesis)",
-        sah_cost(&geometry.bvh, SahConstants::UNIT),
-        sah_cost(&geometry.bvh, SahConstants::THESIS)
+        sah_cost(geometry.bvh(), SahConstants::UNIT),
+        sah_cost(geometry.bvh(), SahConstants::THESIS)
     );
-    let check = validate(&geometry.bvh, &geometry.boxes, builder.max_leaf_size());
+    let check = validate(geometry.bvh(), &geometry.boxes, builder.max_leaf_size());
     println!("invariants  {}", check.map_or_else(|e| format!("BROKEN: {e}"), |()| "ok".into()));
     Ok(())
 }

@@ -121,7 +121,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let mut geometry = Geometry::new(&scene);
     let report = builder.build_timed(&geometry.boxes);
     let build = describe_build(&builder, &report);
-    geometry.bvh = report.bvh;
+    geometry.set_bvh(report.bvh);
 
     let renderer = Renderer {
         tracer: PathTracer {
@@ -168,7 +168,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         let mean = steps.iter().map(|&s| s as f64).sum::<f64>() / steps.len() as f64;
         println!("heatmap: {} (mean {mean:.1} traversal steps per primary ray, red = {max})", p.display());
     }
-    let sah = sah_cost(&geometry.bvh, SahConstants::UNIT);
+    let sah = sah_cost(geometry.bvh(), SahConstants::UNIT);
     println!(
         "{}: {} triangles, {} spheres | {build} | render {:.0} ms ({width}x{height}, {spp} spp) | {:.2} Mrays/s | SAH cost {:.2}",
         args.scene,

@@ -87,7 +87,7 @@ pub fn measure_frame(
     h: u32,
     max_depth: u32,
 ) -> (f64, f64) {
-    geometry.bvh = bvh;
+    geometry.set_bvh(bvh);
     let renderer = Renderer {
         tracer: PathTracer { geometry, materials: &scene.materials, background: &scene.background, max_depth },
         camera: camera.clone(),

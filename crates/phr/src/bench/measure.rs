@@ -127,7 +127,7 @@ impl SceneCtx<'_> {
                     res,
                     self.scene.settings.max_depth,
                 ));
-                bvh = std::mem::take(&mut self.geometry.bvh);
+                bvh = self.geometry.take_bvh();
             }
             frames.sort_by(|a, b| a.0.total_cmp(&b.0));
             let (ms, rays) = frames[frames.len() / 2];
@@ -260,7 +260,7 @@ fn heatmap_pair(ctx: &mut SceneCtx, res: u32, out: &Path) -> Result<String> {
     let camera = Camera::new(&ctx.views[0], res, res);
     let mut counts = Vec::new();
     for builder in [Builder::default(), Builder::PHR_HQ] {
-        ctx.geometry.bvh = builder.build(&ctx.geometry.boxes);
+        ctx.geometry.set_bvh(builder.build(&ctx.geometry.boxes));
         let steps: Vec<u32> = (0..res * res)
             .map(|i| {
                 let ray = camera.ray((i % res) as f32 + 0.5, (i / res) as f32 + 0.5);

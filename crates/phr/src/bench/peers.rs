@@ -90,14 +90,14 @@ pub fn run(
     )?;
     let report = Builder::PHR_HQ.build_timed(&geometry.boxes);
     let ours_build_ms = report.total_time().as_secs_f64() * 1e3;
-    geometry.bvh = report.bvh;
+    geometry.set_bvh(report.bvh);
     let rays = RaySet::new(geometry, camera, res);
     write_rays(&dir, "primary", geometry, &rays.primary)?;
     write_rays(&dir, "diffuse", geometry, &rays.diffuse)?;
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     let (ours_primary, ours_diffuse) =
         one.install(|| (throughput(geometry, &rays.primary), throughput(geometry, &rays.diffuse)));
-    let bvh = std::mem::take(&mut geometry.bvh);
+    let bvh = geometry.take_bvh();
     let (ours_frame_ms, _) =
         crate::tune::measure_frame(scene_data, geometry, bvh, camera, res, res, scene_data.settings.max_depth);
     let mut command = Command::new("python3");

@@ -26,8 +26,8 @@ pub fn run(args: &ViewArgs, mut pipeline: FramePipeline) -> Result<()> {
     Ok(())
 }
 
-/// What the summary needs of each frame: pose, refit, build, render, frame ms, Mrays/s.
-type Times = [f32; 6];
+/// What the summary needs of each frame: pose, refit, build, wide, render, frame ms, Mrays/s.
+type Times = [f32; 7];
 
 struct Summary {
     times: Vec<Times>,
@@ -45,7 +45,7 @@ fn frames(args: &ViewArgs, pipeline: &mut FramePipeline, csv: &mut impl Write) -
     let (width, height) = (pipeline.settings().width, pipeline.settings().height);
     writeln!(
         csv,
-        "frame,time_s,moved,pose_ms,refit_ms,build_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,rss_mib,peak_rss_mib"
+        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,rss_mib,peak_rss_mib"
     )?;
     let mut summary =
         Summary { times: Vec::with_capacity(args.frames as usize), peak_rss_at_100: 0.0, peak_rss_at_end: 0.0 };
@@ -59,13 +59,14 @@ fn frames(args: &ViewArgs, pipeline: &mut FramePipeline, csv: &mut impl Write) -
         let (rss, peak) = memory_mib();
         writeln!(
             csv,
-            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{:.1},{:.1}",
+            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{:.1},{:.1}",
             r.frame,
             r.time,
             r.moved as u8,
             r.pose_ms,
             r.refit_ms,
             r.build_ms,
+            r.wide_ms,
             r.render_ms,
             r.frame_ms,
             r.rays,
@@ -76,9 +77,9 @@ fn frames(args: &ViewArgs, pipeline: &mut FramePipeline, csv: &mut impl Write) -
             rss,
             peak
         )?;
-        summary
-            .times
-            .push([r.pose_ms, r.refit_ms, r.build_ms, r.render_ms, r.frame_ms, r.mrays_per_s()].map(|x| x as f32));
+        summary.times.push(
+            [r.pose_ms, r.refit_ms, r.build_ms, r.wide_ms, r.render_ms, r.frame_ms, r.mrays_per_s()].map(|x| x as f32),
+        );
         if frame < 100 {
             summary.peak_rss_at_100 = peak;
         }
@@ -98,9 +99,9 @@ fn print_summary(args: &ViewArgs, pipeline: &FramePipeline, summary: &Summary) {
         v.sort_by(f32::total_cmp);
         v.get(v.len() / 2).copied().unwrap_or(0.0)
     };
-    let frame_ms = median(4);
+    let frame_ms = median(5);
     println!(
-        "{} frames of {} ({} triangles, {}x{}, 1 spp, {}): median pose {:.2} ms + refit {:.2} ms + build {:.2} ms + render {:.2} ms = frame {:.2} ms ({:.1} fps), {:.1} Mrays/s",
+        "{} frames of {} ({} triangles, {}x{}, 1 spp, {}): median pose {:.2} ms + refit {:.2} ms + build {:.2} ms + wide collapse {:.2} ms + render {:.2} ms = frame {:.2} ms ({:.1} fps), {:.1} Mrays/s",
         summary.times.len(),
         args.scene,
         pipeline.geometry().triangles.len(),
@@ -111,9 +112,10 @@ fn print_summary(args: &ViewArgs, pipeline: &FramePipeline, summary: &Summary) {
         median(1),
         median(2),
         median(3),
+        median(4),
         frame_ms,
         1e3 / frame_ms.max(1e-9),
-        median(5),
+        median(6),
     );
     println!(
         "peak RSS: {:.1} MiB after {} frames, {:.1} MiB after {}",

@@ -485,6 +485,7 @@ impl ViewerApp {
             row("triangles", format!("{}", self.triangles));
             row("refit", format!("{:.2} ms", report.refit_ms));
             row("PHR / build", format!("{:.2} ms", report.build_ms));
+            row("wide collapse", format!("{:.2} ms", report.wide_ms));
             row("render", format!("{:.2} ms", report.render_ms));
             row("frame", format!("{:.2} ms", report.frame_ms));
             row("fps", format!("{:.1}", 1e3 / report.frame_ms.max(1e-3)));
@@ -596,7 +597,7 @@ fn worker(mut pipeline: FramePipeline, shared: Arc<Shared>, ctx: egui::Context, 
         p.history.push_back([
             report.frame_ms as f32,
             report.render_ms as f32,
-            (report.refit_ms + report.build_ms) as f32,
+            (report.refit_ms + report.build_ms + report.wide_ms) as f32,
         ]);
         drop(p);
         ctx.request_repaint();

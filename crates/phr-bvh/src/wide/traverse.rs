@@ -1,0 +1,333 @@
+//! The ordered single-ray traversal of a [`WideBvh`], generic over the node kernel.
+//!
+//! One loop for closest and any hit: test all children of the current node at once, and
+//! - no child hit: pop;
+//! - one child hit: go there (no stack traffic, the common case deep in the tree);
+//! - several: sort them by entry distance (keys `t_bits << 32 | slot`, insertion sort, at
+//!   most `N` of them), push all but the nearest, farthest first, and go to the nearest.
+//!
+//! A leaf child is a stack entry like a node, with its primitive count, so leaves are tested
+//! in entry-distance order too. Popped entries whose entry distance exceeds the closest hit
+//! so far (times `ROBUST_SLAB`, as in the binary traversal) are skipped.
+//!
+//! The stack lives on the call stack when the tree's stack bound (computed by the collapse)
+//! fits [`INLINE_STACK`] entries, on the heap otherwise; either way it is sized from the
+//! bound, so pushes need no capacity check.
+
+use super::simd::{node_scalar, RayPre};
+use super::{Lanes, SimdLevel, WideBvh, WideNode, WideStats, Width};
+use crate::aabb::ROBUST_SLAB;
+use crate::ray::Ray;
+use std::mem::MaybeUninit;
+
+/// Stack entries kept on the call stack.
+pub const INLINE_STACK: usize = 128;
+
+#[derive(Clone, Copy)]
+struct Entry {
+    /// Node index, or first primitive of a leaf.
+    child: u32,
+    /// 0 for a node, else the leaf's primitive count.
+    count: u32,
+    t: f32,
+}
+
+/// A node kernel: the box test of [`super::simd`] for one width and level.
+trait Kernel<const N: usize> {
+    /// # Safety
+    /// The CPU must support the kernel's instructions.
+    unsafe fn test(node: &WideNode<N>, r: &RayPre, tmax: f32, t: &mut [f32; N]) -> u32;
+}
+
+struct ScalarKernel;
+#[cfg(target_arch = "x86_64")]
+struct SseKernel;
+#[cfg(target_arch = "x86_64")]
+struct Avx2Kernel;
+
+impl<const N: usize> Kernel<N> for ScalarKernel {
+    #[inline(always)]
+    unsafe fn test(node: &WideNode<N>, r: &RayPre, tmax: f32, t: &mut [f32; N]) -> u32 {
+        node_scalar(node, r, tmax, t)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Kernel<4> for SseKernel {
+    #[inline(always)]
+    unsafe fn test(node: &WideNode<4>, r: &RayPre, tmax: f32, t: &mut [f32; 4]) -> u32 {
+        // SAFETY: SSE is part of the x86_64 baseline.
+        unsafe { super::simd::node_sse4(node, r, tmax, t) }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Kernel<8> for SseKernel {
+    #[inline(always)]
+    unsafe fn test(node: &WideNode<8>, r: &RayPre, tmax: f32, t: &mut [f32; 8]) -> u32 {
+        // SAFETY: SSE is part of the x86_64 baseline.
+        unsafe { super::simd::node_sse8(node, r, tmax, t) }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Kernel<8> for Avx2Kernel {
+    #[inline(always)]
+    unsafe fn test(node: &WideNode<8>, r: &RayPre, tmax: f32, t: &mut [f32; 8]) -> u32 {
+        // SAFETY: the caller guarantees AVX2 (this kernel is only selected at SimdLevel::Avx2,
+        // which `WideBvh::set_simd` only allows when the CPU has it).
+        unsafe { super::simd::node_avx8(node, r, tmax, t) }
+    }
+}
+
+/// The traversal loop. `ANY`: stop at the first leaf that reports a hit. `COUNT`: fill
+/// `stats`.
+///
+/// # Safety
+/// The CPU must support `K`'s instructions; `bvh` must be a tree made by the collapse (child
+/// indices in range, stack bound correct).
+#[inline(always)]
+unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, F, P>(
+    bvh: &WideBvh<N>,
+    ray: &mut Ray,
+    mut leaf: F,
+    prefetch: P,
+    stats: &mut WideStats,
+) -> bool
+where
+    F: FnMut(u32, u32, &mut Ray) -> bool,
+    P: Fn(u32),
+{
+    let nodes = &bvh.nodes;
+    if nodes.is_empty() {
+        return false;
+    }
+    let mut inline: [MaybeUninit<Entry>; INLINE_STACK] = [const { MaybeUninit::uninit() }; INLINE_STACK];
+    let mut heap: Vec<Entry> = Vec::new();
+    let stack: *mut Entry = if bvh.stack_bound < INLINE_STACK {
+        inline.as_mut_ptr().cast()
+    } else {
+        heap.reserve_exact(bvh.stack_bound + 1);
+        heap.as_mut_ptr()
+    };
+    let mut sp = 0usize;
+    let pre = RayPre::new(ray);
+    let mut t = [0.0f32; N];
+    let mut hit = false;
+    let mut cur = Entry { child: 0, count: 0, t: 0.0 };
+    loop {
+        if cur.count == 0 {
+            // SAFETY: child indices written by the collapse are in range (validated by
+            // `WideBvh::validate` in the tests).
+            let node = unsafe { nodes.get_unchecked(cur.child as usize) };
+            // The child references sit after the boxes, in a line the box test does not read:
+            // ask for it now, so that its load overlaps the box test instead of following it.
+            prefetch_line(node.child.as_ptr().cast());
+            if COUNT {
+                stats.nodes += 1;
+            }
+            // SAFETY: the caller guarantees the kernel's instructions.
+            let mask = unsafe { K::test(node, &pre, ray.tmax, &mut t) };
+            if mask != 0 {
+                if mask & (mask - 1) == 0 {
+                    let i = mask.trailing_zeros() as usize;
+                    cur = Entry { child: node.child[i], count: node.count[i], t: t[i] };
+                    continue;
+                }
+                let rest = mask & (mask - 1);
+                if rest & (rest - 1) == 0 {
+                    // Two children (the common case): push the farther, visit the nearer.
+                    let (a, b) = (mask.trailing_zeros() as usize, rest.trailing_zeros() as usize);
+                    let (near, far) = if t[b] < t[a] { (b, a) } else { (a, b) };
+                    if node.count[far] == 0 {
+                        prefetch_node(nodes, node.child[far]);
+                    } else {
+                        prefetch(node.child[far]);
+                    }
+                    // SAFETY: as for the general case below.
+                    unsafe { stack.add(sp).write(Entry { child: node.child[far], count: node.count[far], t: t[far] }) };
+                    sp += 1;
+                    cur = Entry { child: node.child[near], count: node.count[near], t: t[near] };
+                    continue;
+                }
+                // Several children: sort by entry distance. Entry distances are >= tmin;
+                // for tmin >= 0 their bit patterns order like the floats (a negative tmin
+                // only changes the visit order, never the result).
+                let mut keys = [0u64; N];
+                let mut k = 0;
+                let mut m = mask;
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    let key = (u64::from(t[i].to_bits()) << 32) | i as u64;
+                    let mut j = k;
+                    while j > 0 && keys[j - 1] > key {
+                        keys[j] = keys[j - 1];
+                        j -= 1;
+                    }
+                    keys[j] = key;
+                    k += 1;
+                }
+                for &key in keys[1..k].iter().rev() {
+                    let i = (key & 0xff) as usize;
+                    if node.count[i] == 0 {
+                        prefetch_node(nodes, node.child[i]);
+                    } else {
+                        prefetch(node.child[i]);
+                    }
+                    // SAFETY: the stack holds `stack_bound + 1` entries and the collapse
+                    // bounds the entries on the stack by `stack_bound` (see
+                    // `collapse::collapse`).
+                    unsafe { stack.add(sp).write(Entry { child: node.child[i], count: node.count[i], t: t[i] }) };
+                    sp += 1;
+                }
+                let i = (keys[0] & 0xff) as usize;
+                cur = Entry { child: node.child[i], count: node.count[i], t: t[i] };
+                continue;
+            }
+        } else {
+            if COUNT {
+                stats.leaves += 1;
+                stats.prims += cur.count;
+            }
+            if leaf(cur.child, cur.count, ray) {
+                hit = true;
+                if ANY {
+                    return true;
+                }
+            }
+        }
+        // Pop the next entry that still starts before the closest hit.
+        loop {
+            if sp == 0 {
+                return hit;
+            }
+            sp -= 1;
+            // SAFETY: entries below `sp` were written by the pushes above.
+            let e = unsafe { stack.add(sp).read() };
+            if e.t <= ray.tmax * ROBUST_SLAB {
+                cur = e;
+                break;
+            }
+        }
+    }
+}
+
+/// Asks for the cache line at `p` (a hint; never faults).
+#[inline(always)]
+fn prefetch_line(p: *const i8) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: prefetching is a hint and never faults, whatever the address.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
+}
+
+/// Asks for the box rows of node `i` (popped later) to be loaded into the cache.
+#[inline(always)]
+fn prefetch_node<const N: usize>(nodes: &[WideNode<N>], i: u32) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = nodes.as_ptr().wrapping_add(i as usize).cast::<i8>();
+        for line in 0..std::mem::size_of::<WideNode<N>>() / 64 {
+            // SAFETY: prefetching is a hint and never faults, whatever the address.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * line)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (nodes, i);
+}
+
+/// AVX2 entry points: the whole loop compiled with AVX2 enabled, so the kernel inlines.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn run_avx2_8<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
+    bvh: &WideBvh<8>,
+    ray: &mut Ray,
+    leaf: F,
+    prefetch: P,
+    stats: &mut WideStats,
+) -> bool {
+    // SAFETY: AVX2 is enabled here, which the caller guarantees the CPU has.
+    unsafe { run::<8, Avx2Kernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) }
+}
+
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn run_avx2_4<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
+    bvh: &WideBvh<4>,
+    ray: &mut Ray,
+    leaf: F,
+    prefetch: P,
+    stats: &mut WideStats,
+) -> bool {
+    // SAFETY: SSE is baseline; AVX2 (VEX encoding) is what the caller guarantees.
+    unsafe { run::<4, SseKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) }
+}
+
+pub mod sealed {
+    use super::*;
+
+    /// Dispatch from a [`SimdLevel`] to the kernels of one width.
+    pub trait Sealed<const N: usize> {
+        fn run<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
+            bvh: &WideBvh<N>,
+            ray: &mut Ray,
+            leaf: F,
+            prefetch: P,
+            stats: &mut WideStats,
+        ) -> bool;
+    }
+}
+
+impl sealed::Sealed<4> for Lanes<4> {
+    #[inline]
+    fn run<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
+        bvh: &WideBvh<4>,
+        ray: &mut Ray,
+        leaf: F,
+        prefetch: P,
+        stats: &mut WideStats,
+    ) -> bool {
+        match bvh.simd() {
+            // SAFETY (all arms): `WideBvh::set_simd` never selects a level the CPU lacks, and
+            // the tree comes from the collapse.
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => unsafe { run_avx2_4::<ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Sse => unsafe { run::<4, SseKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
+            _ => unsafe { run::<4, ScalarKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
+        }
+    }
+}
+
+impl sealed::Sealed<8> for Lanes<8> {
+    #[inline]
+    fn run<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
+        bvh: &WideBvh<8>,
+        ray: &mut Ray,
+        leaf: F,
+        prefetch: P,
+        stats: &mut WideStats,
+    ) -> bool {
+        match bvh.simd() {
+            // SAFETY (all arms): as for width 4.
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => unsafe { run_avx2_8::<ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Sse => unsafe { run::<8, SseKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
+            _ => unsafe { run::<8, ScalarKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
+        }
+    }
+}
+
+impl Width<4> for Lanes<4> {}
+impl Width<8> for Lanes<8> {}

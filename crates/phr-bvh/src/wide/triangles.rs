@@ -1,0 +1,270 @@
+//! Triangles laid out for intersection: in the leaf order of a [`super::WideBvh`], with the
+//! edges precomputed, in blocks of 4 (structure of arrays) tested 4 at a time.
+
+use super::{Lanes, SimdLevel, WideBvh, Width};
+use crate::ray::Ray;
+use crate::triangle::{intersect_triangle_edges, TriangleHit, EDGE_TOLERANCE, MAX_EDGE_SLACK};
+use glam::Vec3;
+
+/// Triangles per block (one SSE register per coordinate).
+pub const LANES: usize = 4;
+
+/// 4 triangles: rows `v0.x, v0.y, v0.z, e1.x, e1.y, e1.z, e2.x, e2.y, e2.z`, one lane each.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C, align(16))]
+pub struct TriangleBlock {
+    pub rows: [[f32; LANES]; 9],
+}
+
+/// `[v0, e1 = v1 - v0, e2 = v2 - v0]` per entry of a wide tree's `prim_indices`, 4 entries
+/// per [`TriangleBlock`]. Leaves start at block boundaries (the collapse aligns them), so a
+/// leaf of up to 4 triangles is one block: 144 bytes, read with 9 aligned loads and tested
+/// with one 4-lane Möller–Trumbore, instead of up to 4 dependent scalar tests through an
+/// index indirection.
+///
+/// The edges are computed as [`crate::triangle::intersect_triangle`] computes them and the
+/// 4-lane test performs the scalar test's operations in the same order (no FMA), so
+/// `t`, `u` and `v` are bit-identical to the scalar test; the tests check it.
+///
+/// Entries that are not triangles (padding, and the renderer's spheres, numbered after its
+/// triangles) are zero, which no ray hits (zero determinant); callers test spheres their own
+/// way.
+#[derive(Clone, Debug, Default)]
+pub struct PackedTriangles {
+    pub blocks: Vec<TriangleBlock>,
+    simd: Option<SimdLevel>,
+}
+
+impl PackedTriangles {
+    /// Packs `triangles` (by the caller's primitive index) in the order of `prim_indices`;
+    /// indices `>= triangles.len()` (padding, non-triangles) get a never-hit entry.
+    pub fn new(prim_indices: &[u32], triangles: &[[Vec3; 3]]) -> Self {
+        use rayon::prelude::*;
+        let blocks = prim_indices
+            .par_chunks(LANES)
+            .map(|lanes| {
+                let mut block = TriangleBlock::default();
+                for (l, &p) in lanes.iter().enumerate() {
+                    if let Some(&[v0, v1, v2]) = triangles.get(p as usize) {
+                        let (e1, e2) = (v1 - v0, v2 - v0);
+                        let values = [v0.x, v0.y, v0.z, e1.x, e1.y, e1.z, e2.x, e2.y, e2.z];
+                        for (row, value) in block.rows.iter_mut().zip(values) {
+                            row[l] = value;
+                        }
+                    }
+                }
+                block
+            })
+            .collect();
+        Self { blocks, simd: None }
+    }
+
+    /// Forces the scalar (or another) leaf test; by default the best of this CPU.
+    pub fn set_simd(&mut self, level: SimdLevel) {
+        self.simd = Some(level.min(SimdLevel::detect()));
+    }
+
+    fn simd(&self) -> SimdLevel {
+        self.simd.unwrap_or_else(SimdLevel::detect)
+    }
+
+    /// Entry `i` (a position in the tree's `prim_indices`) as `[v0, e1, e2]`.
+    #[inline(always)]
+    pub fn get(&self, i: u32) -> [Vec3; 3] {
+        let b = &self.blocks[i as usize / LANES].rows;
+        let l = i as usize % LANES;
+        [
+            Vec3::new(b[0][l], b[1][l], b[2][l]),
+            Vec3::new(b[3][l], b[4][l], b[5][l]),
+            Vec3::new(b[6][l], b[7][l], b[8][l]),
+        ]
+    }
+
+    /// Asks for the block holding entry `i` to be loaded into the cache (a hint).
+    #[inline(always)]
+    pub fn prefetch(&self, i: u32) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let p = self.blocks.as_ptr().wrapping_add(i as usize / LANES).cast::<i8>();
+            // SAFETY: prefetching is a hint and never faults, whatever the address.
+            unsafe {
+                _mm_prefetch::<_MM_HINT_T0>(p);
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(143));
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = i;
+    }
+
+    /// Möller–Trumbore on entry `i`, scalar.
+    #[inline(always)]
+    pub fn intersect(&self, i: u32, ray: &Ray) -> Option<TriangleHit> {
+        let [v0, e1, e2] = self.get(i);
+        intersect_triangle_edges(ray, v0, e1, e2)
+    }
+
+    /// Tests the entries `first..first + count` (a leaf; fastest when `first` is a multiple of
+    /// [`LANES`], as the default collapse makes it) and
+    /// calls `on_hit(i, hit, ray)` for each hit in index order, skipping hits beyond the
+    /// current `ray.tmax`: exactly the hits, with the same `ray.tmax` at each call, that the
+    /// scalar loop `for i in first..first + count { if let Some(h) = intersect(i, ray) ... }`
+    /// would see. `on_hit` applies the caller's rule (shrinking `ray.tmax`) and returns
+    /// whether it kept the hit. Returns whether any `on_hit` did.
+    #[inline(always)]
+    pub fn leaf_hits(
+        &self,
+        first: u32,
+        count: u32,
+        ray: &mut Ray,
+        mut on_hit: impl FnMut(u32, TriangleHit, &mut Ray) -> bool,
+    ) -> bool {
+        let mut kept = false;
+        #[cfg(target_arch = "x86_64")]
+        if self.simd() >= SimdLevel::Sse {
+            let end = first + count;
+            // Blocks from the one holding `first`; lanes outside `first..end` are masked.
+            let mut base = first - first % LANES as u32;
+            while base < end {
+                let lo = first.saturating_sub(base);
+                let hi = (end - base).min(LANES as u32);
+                let block = &self.blocks[base as usize / LANES];
+                // SAFETY: SSE is part of the x86_64 baseline.
+                let (mut mask, t, u, v) = unsafe { sse::block(block, ray) };
+                mask &= ((1 << hi) - 1) & !((1 << lo) - 1);
+                while mask != 0 {
+                    let l = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    if t[l] <= ray.tmax {
+                        kept |= on_hit(base + l as u32, TriangleHit { t: t[l], u: u[l], v: v[l] }, ray);
+                    }
+                }
+                base += LANES as u32;
+            }
+            return kept;
+        }
+        for i in first..first + count {
+            if let Some(h) = self.intersect(i, ray) {
+                kept |= on_hit(i, h, ray);
+            }
+        }
+        kept
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod sse {
+    use super::*;
+    use std::arch::x86_64::*;
+
+    /// The 4-lane Möller–Trumbore: [`intersect_triangle_edges`] lane by lane, same
+    /// operations in the same order. Returns the hit mask (`tmin < t <= tmax` and inside with
+    /// the edge tolerance) and `t`, `u`, `v` of every lane.
+    ///
+    /// # Safety
+    /// Needs SSE (x86_64 baseline).
+    #[inline(always)]
+    pub unsafe fn block(b: &TriangleBlock, ray: &Ray) -> (u32, [f32; 4], [f32; 4], [f32; 4]) {
+        // SAFETY: the block is 16-byte aligned (repr align(16), rows of 16 bytes) and SSE is
+        // baseline; stores go to local arrays of 4 floats.
+        unsafe {
+            let row = |k: usize| _mm_load_ps(b.rows[k].as_ptr());
+            let (v0x, v0y, v0z) = (row(0), row(1), row(2));
+            let (e1x, e1y, e1z) = (row(3), row(4), row(5));
+            let (e2x, e2y, e2z) = (row(6), row(7), row(8));
+            let (dx, dy, dz) = (_mm_set1_ps(ray.dir.x), _mm_set1_ps(ray.dir.y), _mm_set1_ps(ray.dir.z));
+            let (ox, oy, oz) = (_mm_set1_ps(ray.origin.x), _mm_set1_ps(ray.origin.y), _mm_set1_ps(ray.origin.z));
+            let mul = |a, b| _mm_mul_ps(a, b);
+            let sub = |a, b| _mm_sub_ps(a, b);
+            let add = |a, b| _mm_add_ps(a, b);
+            let sign = _mm_set1_ps(-0.0);
+            let abs = |a| _mm_andnot_ps(sign, a);
+            // (a.x * b.x + a.y * b.y) + a.z * b.z, as glam's `dot`.
+            let dot = |ax, ay, az, bx, by, bz| add(add(mul(ax, bx), mul(ay, by)), mul(az, bz));
+            // p = dir × e2 (glam's `cross`: y * rhs.z - rhs.y * z, ...).
+            let px = sub(mul(dy, e2z), mul(e2y, dz));
+            let py = sub(mul(dz, e2x), mul(e2z, dx));
+            let pz = sub(mul(dx, e2y), mul(e2x, dy));
+            let det = dot(e1x, e1y, e1z, px, py, pz);
+            // det != 0 and finite (`cmplt` with +inf is false for NaN and ±inf).
+            let valid =
+                _mm_and_ps(_mm_cmpneq_ps(det, _mm_setzero_ps()), _mm_cmplt_ps(abs(det), _mm_set1_ps(f32::INFINITY)));
+            let inv_det = _mm_div_ps(_mm_set1_ps(1.0), det);
+            let (sx, sy, sz) = (sub(ox, v0x), sub(oy, v0y), sub(oz, v0z));
+            // q = s × e1
+            let qx = sub(mul(sy, e1z), mul(e1y, sz));
+            let qy = sub(mul(sz, e1x), mul(e1z, sx));
+            let qz = sub(mul(sx, e1y), mul(e1x, sy));
+            let u = mul(dot(sx, sy, sz, px, py, pz), inv_det);
+            let v = mul(dot(dx, dy, dz, qx, qy, qz), inv_det);
+            let abs_inv_det = abs(inv_det);
+            let edge = _mm_set1_ps(EDGE_TOLERANCE);
+            let slack = _mm_set1_ps(MAX_EDGE_SLACK);
+            // `x.min(S)` is S for NaN x, as `minps(x, S)`.
+            let tol_u = _mm_min_ps(
+                mul(mul(edge, dot(abs(sx), abs(sy), abs(sz), abs(px), abs(py), abs(pz))), abs_inv_det),
+                slack,
+            );
+            let tol_v = _mm_min_ps(
+                mul(mul(edge, dot(abs(dx), abs(dy), abs(dz), abs(qx), abs(qy), abs(qz))), abs_inv_det),
+                slack,
+            );
+            let neg = |a| _mm_xor_ps(sign, a);
+            let outside = _mm_or_ps(
+                _mm_or_ps(_mm_cmplt_ps(u, neg(tol_u)), _mm_cmplt_ps(v, neg(tol_v))),
+                _mm_cmpgt_ps(add(u, v), add(add(_mm_set1_ps(1.0), tol_u), tol_v)),
+            );
+            let t = mul(dot(e2x, e2y, e2z, qx, qy, qz), inv_det);
+            let in_range = _mm_and_ps(_mm_cmpgt_ps(t, _mm_set1_ps(ray.tmin)), _mm_cmple_ps(t, _mm_set1_ps(ray.tmax)));
+            let hit = _mm_andnot_ps(outside, _mm_and_ps(valid, in_range));
+            let (mut ta, mut ua, mut va) = ([0.0f32; 4], [0.0f32; 4], [0.0f32; 4]);
+            _mm_storeu_ps(ta.as_mut_ptr(), t);
+            _mm_storeu_ps(ua.as_mut_ptr(), u);
+            _mm_storeu_ps(va.as_mut_ptr(), v);
+            (_mm_movemask_ps(hit) as u32, ta, ua, va)
+        }
+    }
+}
+
+impl<const N: usize> WideBvh<N>
+where
+    Lanes<N>: Width<N>,
+{
+    /// Closest hit over triangles only (`tris` packed from this tree): the caller's primitive
+    /// index and the hit. Ties (equal `t`) go to the lowest primitive index, whatever the
+    /// visit order, so the result equals brute force's.
+    #[inline]
+    pub fn closest_triangle(&self, tris: &PackedTriangles, ray: &Ray) -> Option<(u32, TriangleHit)> {
+        let mut r = *ray;
+        let mut best: Option<(u32, TriangleHit)> = None;
+        let prims = &self.prim_indices;
+        self.closest_hit_leaves_prefetch(
+            &mut r,
+            |i| tris.prefetch(i),
+            |first, count, r| {
+                tris.leaf_hits(first, count, r, |i, h, r| {
+                    let p = prims[i as usize];
+                    // Hits at exactly tmax are reported too; they win if their index is lower.
+                    if h.t < r.tmax || best.is_none_or(|(bp, _)| p < bp) {
+                        r.tmax = h.t;
+                        best = Some((p, h));
+                        true
+                    } else {
+                        false
+                    }
+                })
+            },
+        );
+        best
+    }
+
+    /// Whether any triangle is hit within the ray's interval.
+    #[inline]
+    pub fn any_triangle(&self, tris: &PackedTriangles, ray: &Ray) -> bool {
+        self.any_hit_leaves(ray, |first, count, r| {
+            let mut r = *r;
+            tris.leaf_hits(first, count, &mut r, |_, _, _| true)
+        })
+    }
+}

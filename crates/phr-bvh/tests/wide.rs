@@ -1,0 +1,289 @@
+//! The wide BVH (4 and 8 children, SIMD traversal): tree invariants after the collapse, and
+//! closest hits identical to the binary reference traversal and to brute force, for every
+//! SIMD level this CPU has (including the forced scalar fallback), on the adversarial meshes
+//! with random and diffuse-bounce rays. Any-hit agrees with closest-hit.
+
+mod common;
+
+use common::*;
+use glam::Vec3;
+use phr_bvh::node::Node;
+use phr_bvh::triangle::intersect_triangle;
+use phr_bvh::wide::{CollapseOptions, Lanes, Width};
+use phr_bvh::{refit, validate, Builder, Bvh, PackedTriangles, Ray, SimdLevel, WideBvh};
+
+fn builders() -> Vec<Builder> {
+    let mut b: Vec<Builder> = ["lbvh", "phr-hq", "binned-sah"].iter().map(|s| s.parse().unwrap()).collect();
+    for k in [3, 4, 8, 16] {
+        b.push(Builder::PHR_HQ.with_branching(k).unwrap());
+    }
+    b
+}
+
+/// Diffuse-bounce-like rays: from the brute-force hits of `rays`, a random direction in the
+/// hemisphere the ray came from, starting a little off the surface.
+fn bounce_rays(tris: &[[Vec3; 3]], rays: &[Ray], rng: &mut Rng) -> Vec<Ray> {
+    rays.iter()
+        .filter_map(|r| {
+            let (t, p) = brute_force(tris, r)?;
+            let [a, b, c] = tris[p as usize];
+            let n = (b - a).cross(c - a).normalize_or(Vec3::Z);
+            let facing = if n.dot(r.dir) < 0.0 { n } else { -n };
+            let dir = (facing + rng.unit_vector()).normalize_or(facing);
+            let hit = r.at(t);
+            Some(Ray::new(hit + facing * 1e-5 * (1.0 + hit.abs().max_element()), dir))
+        })
+        .collect()
+}
+
+/// The per-primitive closure path, with the same tie rule as `bvh_hit`.
+fn wide_hit_closure<const N: usize>(wide: &WideBvh<N>, tris: &[[Vec3; 3]], ray: &Ray) -> Option<(f32, u32)>
+where
+    Lanes<N>: Width<N>,
+{
+    let mut r = *ray;
+    let mut best: Option<(f32, u32)> = None;
+    wide.closest_hit(&mut r, |p, r| {
+        let t = &tris[p as usize];
+        match intersect_triangle(r, t[0], t[1], t[2]) {
+            Some(h) if h.t < r.tmax || best.is_none_or(|(_, bp)| p < bp) => {
+                r.tmax = h.t;
+                best = Some((h.t, p));
+                true
+            }
+            _ => false,
+        }
+    });
+    best
+}
+
+/// Checks one wide tree at every SIMD level; returns the number of hits.
+fn check_wide<const N: usize>(bvh: &Bvh, tris: &[[Vec3; 3]], rays: &[Ray], what: &str) -> usize
+where
+    Lanes<N>: Width<N>,
+{
+    check_wide_with::<N>(bvh, tris, rays, what, CollapseOptions::default())
+        + check_wide_with::<N>(bvh, tris, rays, &format!("{what} (source leaves)"), CollapseOptions::KEEP_LEAVES)
+}
+
+fn check_wide_with<const N: usize>(
+    bvh: &Bvh,
+    tris: &[[Vec3; 3]],
+    rays: &[Ray],
+    what: &str,
+    options: CollapseOptions,
+) -> usize
+where
+    Lanes<N>: Width<N>,
+{
+    let boxes = triangle_boxes(tris);
+    let mut wide = WideBvh::<N>::from_bvh_with(bvh, options);
+    wide.validate(&boxes).unwrap_or_else(|e| panic!("{what}, wide-{N}: {e}"));
+    let mut packed = PackedTriangles::new(&wide.prim_indices, tris);
+    let mut hits = 0;
+    for level in SimdLevel::supported() {
+        wide.set_simd(level);
+        packed.set_simd(level);
+        assert_eq!(wide.simd(), level);
+        let what = format!("{what}, wide-{N} {}", level.name());
+        for (i, ray) in rays.iter().enumerate() {
+            let expected = brute_force(tris, ray);
+            assert_eq!(bvh_hit(bvh, tris, ray), expected, "{what}: binary reference, ray {i} {ray:?}");
+            let packed_hit = wide.closest_triangle(&packed, ray).map(|(p, h)| (h.t, p));
+            assert_eq!(packed_hit, expected, "{what}: packed triangles, ray {i} {ray:?}");
+            if let Some((p, h)) = wide.closest_triangle(&packed, ray) {
+                let [a, b, c] = tris[p as usize];
+                let scalar = intersect_triangle(ray, a, b, c).expect("the scalar test hits too");
+                let bits = |h: phr_bvh::triangle::TriangleHit| [h.t.to_bits(), h.u.to_bits(), h.v.to_bits()];
+                assert_eq!(bits(h), bits(scalar), "{what}: t/u/v bits, ray {i}");
+            }
+            assert_eq!(wide_hit_closure(&wide, tris, ray), expected, "{what}: closure path, ray {i} {ray:?}");
+            assert_eq!(wide.any_triangle(&packed, ray), expected.is_some(), "{what}: any hit, ray {i} {ray:?}");
+            let any = wide.any_hit(ray, |p, r| {
+                let t = &tris[p as usize];
+                intersect_triangle(r, t[0], t[1], t[2]).is_some()
+            });
+            assert_eq!(any, expected.is_some(), "{what}: any hit (closure), ray {i} {ray:?}");
+            hits += expected.is_some() as usize;
+        }
+    }
+    hits
+}
+
+#[test]
+fn wide_matches_binary_and_brute_force_on_adversarial_meshes() {
+    let mut total_rays = 0;
+    let mut total_hits = 0;
+    for (name, tris) in adversarial_meshes() {
+        let boxes = triangle_boxes(&tris);
+        let mut rng = Rng::new(tris.len() as u64 + 5);
+        for builder in builders() {
+            let bvh = builder.build(&boxes);
+            validate(&bvh, &boxes, builder.max_leaf_size()).unwrap();
+            let mut rays = random_rays(bvh.root_bounds(), 150, &mut rng);
+            let bounces = bounce_rays(&tris, &rays, &mut rng);
+            rays.extend(bounces);
+            let what = format!("{name}, {builder}");
+            total_hits += check_wide::<4>(&bvh, &tris, &rays, &what);
+            total_hits += check_wide::<8>(&bvh, &tris, &rays, &what);
+            total_rays += 2 * rays.len() * SimdLevel::supported().len();
+        }
+    }
+    // Not vacuous: a good share of the rays hit something.
+    assert!(total_hits * 10 > total_rays, "{total_hits} hits of {total_rays} rays");
+}
+
+#[test]
+fn detection_picks_a_supported_level_and_set_simd_clamps() {
+    let levels = SimdLevel::supported();
+    assert_eq!(levels[0], SimdLevel::Scalar);
+    assert_eq!(*levels.last().unwrap(), SimdLevel::detect());
+    #[cfg(target_arch = "x86_64")]
+    assert!(levels.contains(&SimdLevel::Sse));
+    let tris = random_soup(100, 1.0, &mut Rng::new(3));
+    let bvh = Builder::default().build(&triangle_boxes(&tris));
+    let wide = WideBvh::<8>::from_bvh(&bvh).with_simd(SimdLevel::Avx2);
+    assert!(wide.simd() <= SimdLevel::detect());
+}
+
+/// The collapse fills nodes: on a binary tree of many leaves most slots are used, and the
+/// wide tree has about (leaves - 1) / (N - 1) nodes.
+#[test]
+fn collapse_fills_the_slots() {
+    let tris = random_soup(20_000, 1.0, &mut Rng::new(11));
+    let boxes = triangle_boxes(&tris);
+    let bvh = Builder::PHR_HQ.build(&boxes);
+    let leaves = bvh.nodes.iter().filter(|n| n.is_leaf()).count();
+    let w4 = WideBvh::<4>::from_bvh_with(&bvh, CollapseOptions::KEEP_LEAVES);
+    let w8 = WideBvh::<8>::from_bvh_with(&bvh, CollapseOptions::KEEP_LEAVES);
+    assert_eq!(w4.leaf_count(), leaves);
+    assert_eq!(w8.leaf_count(), leaves);
+    assert!(w4.mean_fill() > 2.8, "wide-4 fill {}", w4.mean_fill());
+    assert!(w8.mean_fill() > 4.5, "wide-8 fill {}", w8.mean_fill());
+    eprintln!("fill: wide-4 {:.2}, wide-8 {:.2}", w4.mean_fill(), w8.mean_fill());
+    assert!(w8.nodes.len() < leaves / 3, "{} wide-8 nodes for {leaves} leaves", w8.nodes.len());
+}
+
+/// A degenerate chain (every interior node has a leaf and an interior child): deep enough
+/// that the traversal stack does not fit on the call stack and goes to the heap.
+#[test]
+fn deep_chain_uses_the_heap_stack_and_still_matches() {
+    let n = 2000;
+    let mut rng = Rng::new(5);
+    let tris = random_soup(n, 1.0, &mut rng);
+    let boxes = triangle_boxes(&tris);
+    let mut nodes = Vec::new();
+    for i in 0..n as u32 - 1 {
+        let first_child = nodes.len() as u32 + 1;
+        nodes.push(Node::interior(Default::default(), first_child));
+        nodes.push(Node::leaf(Default::default(), i, 1));
+        if i == n as u32 - 2 {
+            nodes.push(Node::leaf(Default::default(), i + 1, 1));
+        }
+    }
+    // Children of node at 2i are 2i+1 (leaf) and 2i+2 (next interior or the last leaf).
+    let mut bvh = Bvh { nodes, prim_indices: (0..n as u32).collect(), parents: Vec::new() };
+    bvh.compute_parents();
+    refit(&mut bvh, &boxes);
+    validate(&bvh, &boxes, 1).unwrap();
+    let rays = random_rays(bvh.root_bounds(), 60, &mut rng);
+    let hits = check_wide::<4>(&bvh, &tris, &rays, "chain") + check_wide::<8>(&bvh, &tris, &rays, "chain");
+    assert!(hits > 0);
+}
+
+#[test]
+fn empty_and_single_triangle_trees() {
+    let empty = WideBvh::<8>::from_bvh(&Bvh::default());
+    assert!(empty.validate(&[]).is_ok());
+    let ray = Ray::new(Vec3::ZERO, Vec3::Z);
+    assert!(!empty.closest_hit(&mut ray.clone(), |_, _| true));
+    let tris = vec![[Vec3::new(-1.0, -1.0, 1.0), Vec3::new(1.0, -1.0, 1.0), Vec3::new(0.0, 1.0, 1.0)]];
+    let bvh = Builder::default().build(&triangle_boxes(&tris));
+    let wide = WideBvh::<4>::from_bvh(&bvh);
+    wide.validate(&triangle_boxes(&tris)).unwrap();
+    let packed = PackedTriangles::new(&wide.prim_indices, &tris);
+    assert_eq!(wide.closest_triangle(&packed, &ray).map(|(p, h)| (p, h.t)), Some((0, 1.0)));
+}
+
+#[test]
+fn validate_catches_broken_wide_trees() {
+    let tris = random_soup(500, 1.0, &mut Rng::new(9));
+    let boxes = triangle_boxes(&tris);
+    let wide = WideBvh::<4>::from_bvh(&Builder::default().build(&boxes));
+    wide.validate(&boxes).unwrap();
+    // A child box that no longer encloses its subtree.
+    let mut broken = wide.clone();
+    let slot = (0..4).find(|&s| broken.nodes[0].count[s] == 0 && broken.nodes[0].is_used(s)).unwrap();
+    broken.nodes[0].bounds[phr_bvh::wide::MAX_X][slot] = broken.nodes[0].bounds[phr_bvh::wide::MIN_X][slot];
+    assert!(broken.validate(&boxes).is_err());
+    // A primitive referenced twice (and another one lost).
+    let mut broken = wide.clone();
+    broken.prim_indices[1] = broken.prim_indices[0];
+    assert!(broken.validate(&boxes).is_err());
+}
+
+/// Merged leaves: at most 4 primitives (unless a source leaf was larger), each starting at a
+/// block boundary; fewer nodes than without merging.
+#[test]
+fn merged_leaves_are_small_and_aligned() {
+    let tris = random_soup(20_000, 1.0, &mut Rng::new(12));
+    let boxes = triangle_boxes(&tris);
+    let bvh = phr_bvh::build_lbvh(&boxes, phr_bvh::LbvhOptions { max_leaf_size: 1 });
+    let merged = WideBvh::<8>::from_bvh(&bvh);
+    let kept = WideBvh::<8>::from_bvh_with(&bvh, CollapseOptions::KEEP_LEAVES);
+    merged.validate(&boxes).unwrap();
+    assert!(merged.nodes.len() < kept.nodes.len(), "{} vs {} nodes", merged.nodes.len(), kept.nodes.len());
+    for n in &merged.nodes {
+        for s in 0..8 {
+            if n.count[s] > 0 {
+                assert!(n.count[s] <= 4);
+                assert_eq!(n.child[s] % 4, 0);
+            }
+        }
+    }
+}
+
+/// The 4-lane triangle test gives the scalar test's bits on random, degenerate, huge, tiny
+/// and grazing triangles, hits and misses alike (compared through `leaf_hits`).
+#[test]
+fn packed_block_test_is_bit_identical_to_scalar() {
+    let mut rng = Rng::new(77);
+    let mut tris = Vec::new();
+    for (_, mesh) in adversarial_meshes() {
+        tris.extend(mesh.into_iter().take(300));
+    }
+    let prims: Vec<u32> = (0..tris.len() as u32).collect();
+    let mut simd = PackedTriangles::new(&prims, &tris);
+    let mut scalar = simd.clone();
+    scalar.set_simd(SimdLevel::Scalar);
+    simd.set_simd(SimdLevel::detect());
+    let bounds = triangle_boxes(&tris).iter().fold(phr_bvh::Aabb::EMPTY, |a, b| a.union(*b));
+    let mut rays = random_rays(bounds, 300, &mut rng);
+    // Rays at the triangles, some grazing their planes.
+    for t in tris.iter().step_by(7) {
+        let target = (t[0] + t[1] + t[2]) / 3.0;
+        let o = target + rng.unit_vector() * 2.0;
+        rays.push(Ray::new(o, (target - o).normalize_or(Vec3::X)));
+        let along = (t[1] - t[0]).normalize_or(Vec3::X);
+        rays.push(Ray::new(target - along, along));
+    }
+    let mut hits = 0;
+    for ray in &rays {
+        for first in (0..tris.len() as u32).step_by(4) {
+            let count = (tris.len() as u32 - first).min(4);
+            let collect = |p: &PackedTriangles| {
+                let mut r = *ray;
+                let mut out = Vec::new();
+                p.leaf_hits(first, count, &mut r, |i, h, _| {
+                    out.push((i, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()));
+                    false
+                });
+                out
+            };
+            let a = collect(&scalar);
+            assert_eq!(collect(&simd), a, "ray {ray:?}, block at {first}");
+            hits += a.len();
+        }
+    }
+    assert!(hits > 100, "only {hits} hits");
+}
