@@ -287,3 +287,30 @@ fn packed_block_test_is_bit_identical_to_scalar() {
     }
     assert!(hits > 100, "only {hits} hits");
 }
+
+#[test]
+fn rebuilding_in_place_equals_a_fresh_collapse() {
+    // The dynamic pipeline collapses and packs into the previous frame's memory: a big tree
+    // first, then a smaller and a k-ary one, each must come out as a fresh collapse would.
+    let mut rng = Rng::new(7);
+    let big = random_soup(3000, 1.0, &mut rng);
+    let small = random_soup(500, 1.0, &mut rng);
+    let mut wide = WideBvh::<8>::default();
+    let mut packed = PackedTriangles::default();
+    for (tris, builder) in
+        [(&big, Builder::default()), (&small, Builder::PHR_FAST.with_branching(4).unwrap()), (&big, Builder::PHR_HQ)]
+    {
+        let bvh = builder.build(&triangle_boxes(tris));
+        wide.rebuild(&bvh);
+        packed.repack(&wide.prim_indices, tris);
+        let fresh = WideBvh::<8>::from_bvh(&bvh);
+        assert_eq!(wide.nodes, fresh.nodes);
+        assert_eq!(wide.prim_indices, fresh.prim_indices);
+        assert_eq!(packed.blocks, PackedTriangles::new(&fresh.prim_indices, tris).blocks);
+        wide.validate(&triangle_boxes(tris)).unwrap();
+        for ray in random_rays(phr_bvh::Aabb::from_points(&tris.concat()), 300, &mut rng) {
+            let hit = wide.closest_triangle(&packed, &ray).map(|(p, h)| (h.t, p));
+            assert_eq!(hit, brute_force(tris, &ray));
+        }
+    }
+}

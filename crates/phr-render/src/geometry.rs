@@ -108,8 +108,9 @@ impl Geometry {
     /// wide tree and the packed triangles the queries use. Call it again after the triangles
     /// move.
     pub fn set_bvh(&mut self, bvh: Bvh) {
-        self.wide = WideBvh::from_bvh(&bvh);
-        self.packed = PackedTriangles::new(&self.wide.prim_indices, &self.triangles);
+        // Into the previous frame's memory: in a dynamic scene this runs every frame.
+        self.wide.rebuild(&bvh);
+        self.packed.repack(&self.wide.prim_indices, &self.triangles);
         self.bvh = bvh;
     }
 

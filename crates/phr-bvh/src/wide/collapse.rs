@@ -74,9 +74,9 @@ enum Task {
 }
 
 /// The binary view of `src`, root at index 0.
-fn binary_view(src: &Bvh) -> Vec<Bin> {
+fn binary_view(src: &Bvh, scratch: Vec<Bin>) -> Vec<Bin> {
     if src.max_branching() <= 2 {
-        return binary_view_of_binary(src);
+        return binary_view_of_binary(src, scratch);
     }
     let placeholder = Bin { bounds: Aabb::EMPTY, area: 0.0, a: 0, b: 0, first: 0, count: 0, prims: 0 };
     let mut bins = Vec::with_capacity(src.nodes.len() + src.nodes.len() / 2);
@@ -147,10 +147,10 @@ fn subtree_prims(bins: &[Bin], src: &Bvh, b: u32, out: &mut Vec<u32>) {
 
 /// The binary view of a binary tree: the same nodes at the same indices (children always
 /// follow their parent, so one backward pass counts the primitives).
-fn binary_view_of_binary(src: &Bvh) -> Vec<Bin> {
+fn binary_view_of_binary(src: &Bvh, mut bins: Vec<Bin>) -> Vec<Bin> {
     use rayon::prelude::*;
-    let mut bins: Vec<Bin> = src
-        .nodes
+    bins.clear();
+    src.nodes
         .par_iter()
         .map(|n| {
             let (first, count) = if n.is_leaf() { (n.first, n.count) } else { (0, 0) };
@@ -164,7 +164,7 @@ fn binary_view_of_binary(src: &Bvh) -> Vec<Bin> {
                 prims: count,
             }
         })
-        .collect();
+        .collect_into_vec(&mut bins);
     for i in (0..bins.len()).rev() {
         if !bins[i].is_leaf() {
             bins[i].prims = bins[bins[i].a as usize].prims + bins[bins[i].b as usize].prims;
@@ -210,13 +210,27 @@ fn sah_split(src: &Bvh, mut members: Vec<u32>) -> (Task, Task) {
 /// Collapses `src` into `N`-wide nodes; returns the nodes, the primitive indices in leaf
 /// order and the traversal stack bound (the largest number of entries the ordered traversal
 /// can have on its stack: along any root-to-node path, the sum of `children - 1`).
-pub(crate) fn collapse<const N: usize>(src: &Bvh, options: CollapseOptions) -> (Vec<WideNode<N>>, Vec<u32>, usize) {
+/// `nodes` and `prims` are cleared and filled: passing the previous frame's arrays reuses
+/// their memory (fresh arrays of tens of MB cost more in page faults than the collapse).
+pub(crate) fn collapse<const N: usize>(
+    src: &Bvh,
+    options: CollapseOptions,
+    mut nodes: Vec<WideNode<N>>,
+    mut prims: Vec<u32>,
+) -> (Vec<WideNode<N>>, Vec<u32>, usize) {
     assert!(N >= 2, "a wide node needs at least two slots");
     let align = options.leaf_align.max(1) as usize;
+    nodes.clear();
+    prims.clear();
     if src.nodes.is_empty() {
-        return (Vec::new(), Vec::new(), 0);
+        return (nodes, prims, 0);
     }
-    let mut bins = binary_view(src);
+    // The binary view's memory is kept per thread from one collapse to the next (a dynamic
+    // scene collapses every frame).
+    thread_local! {
+        static SCRATCH: std::cell::Cell<Vec<Bin>> = const { std::cell::Cell::new(Vec::new()) };
+    }
+    let mut bins = binary_view(src, SCRATCH.take());
     // Small subtrees become leaves: mark them (count > 0) and remember where their
     // primitives are, in a second reference array.
     let mut merged: Vec<u32> = Vec::new();
@@ -246,9 +260,9 @@ pub(crate) fn collapse<const N: usize>(src: &Bvh, options: CollapseOptions) -> (
             &src.prim_indices[first as usize..(first + count) as usize]
         }
     };
-    let mut nodes = Vec::with_capacity(src.nodes.len() / (N - 1) + 1);
+    nodes.reserve(src.nodes.len() / (N - 1) + 1);
     nodes.push(WideNode::<N>::EMPTY);
-    let mut prims = Vec::with_capacity(src.prim_indices.len());
+    prims.reserve(src.prim_indices.len());
     let mut bound = 0;
     // (binary node whose children fill the wide node, wide node, stack depth above it)
     let mut work = vec![(0u32, 0usize, 0usize)];
@@ -294,5 +308,6 @@ pub(crate) fn collapse<const N: usize>(src: &Bvh, options: CollapseOptions) -> (
         }
         nodes[w] = node;
     }
+    SCRATCH.set(bins);
     (nodes, prims, bound)
 }

@@ -235,8 +235,17 @@ where
 
     /// [`WideBvh::from_bvh`] with explicit options.
     pub fn from_bvh_with(bvh: &Bvh, options: CollapseOptions) -> Self {
-        let (nodes, prim_indices, stack_bound) = collapse::collapse::<N>(bvh, options);
+        let (nodes, prim_indices, stack_bound) = collapse::collapse::<N>(bvh, options, Vec::new(), Vec::new());
         Self { nodes, prim_indices, stack_bound, simd: SimdLevel::detect() }
+    }
+
+    /// Collapses `bvh` (default options) into this tree's memory: the per-frame update of a
+    /// dynamic scene, without fresh allocations.
+    pub fn rebuild(&mut self, bvh: &Bvh) {
+        let nodes = std::mem::take(&mut self.nodes);
+        let prims = std::mem::take(&mut self.prim_indices);
+        let (nodes, prim_indices, stack_bound) = collapse::collapse::<N>(bvh, CollapseOptions::default(), nodes, prims);
+        (self.nodes, self.prim_indices, self.stack_bound) = (nodes, prim_indices, stack_bound);
     }
 
     /// The kernel in use.

@@ -39,24 +39,27 @@ impl PackedTriangles {
     /// Packs `triangles` (by the caller's primitive index) in the order of `prim_indices`;
     /// indices `>= triangles.len()` (padding, non-triangles) get a never-hit entry.
     pub fn new(prim_indices: &[u32], triangles: &[[Vec3; 3]]) -> Self {
+        let mut packed = Self { blocks: Vec::new(), simd: None };
+        packed.repack(prim_indices, triangles);
+        packed
+    }
+
+    /// Packs again (the triangles moved, or the tree changed) into the same memory.
+    pub fn repack(&mut self, prim_indices: &[u32], triangles: &[[Vec3; 3]]) {
         use rayon::prelude::*;
-        let blocks = prim_indices
-            .par_chunks(LANES)
-            .map(|lanes| {
-                let mut block = TriangleBlock::default();
-                for (l, &p) in lanes.iter().enumerate() {
-                    if let Some(&[v0, v1, v2]) = triangles.get(p as usize) {
-                        let (e1, e2) = (v1 - v0, v2 - v0);
-                        let values = [v0.x, v0.y, v0.z, e1.x, e1.y, e1.z, e2.x, e2.y, e2.z];
-                        for (row, value) in block.rows.iter_mut().zip(values) {
-                            row[l] = value;
-                        }
+        self.blocks.resize(prim_indices.len().div_ceil(LANES), TriangleBlock::default());
+        self.blocks.par_iter_mut().zip(prim_indices.par_chunks(LANES)).for_each(|(block, lanes)| {
+            *block = TriangleBlock::default();
+            for (l, &p) in lanes.iter().enumerate() {
+                if let Some(&[v0, v1, v2]) = triangles.get(p as usize) {
+                    let (e1, e2) = (v1 - v0, v2 - v0);
+                    let values = [v0.x, v0.y, v0.z, e1.x, e1.y, e1.z, e2.x, e2.y, e2.z];
+                    for (row, value) in block.rows.iter_mut().zip(values) {
+                        row[l] = value;
                     }
                 }
-                block
-            })
-            .collect();
-        Self { blocks, simd: None }
+            }
+        });
     }
 
     /// Forces the scalar (or another) leaf test; by default the best of this CPU.
