@@ -70,6 +70,17 @@ pub fn intersect_triangle_edges(ray: &Ray, v0: Vec3, e1: Vec3, e2: Vec3) -> Opti
     }
 }
 
+/// The box a BVH should hold a triangle in: its bounds grown by the inside test's largest
+/// slack. [`intersect_triangle`] accepts barycentrics down to `-MAX_EDGE_SLACK`, so a hit may
+/// lie up to `MAX_EDGE_SLACK · (|e1| + |e2|)` (at most `2√3 · MAX_EDGE_SLACK` times the box's
+/// largest extent) outside the triangle, and so outside its exact bounds, where a traversal
+/// would never look for it.
+pub fn triangle_bounds(v0: Vec3, v1: Vec3, v2: Vec3) -> crate::Aabb {
+    let b = crate::Aabb::from_points(&[v0, v1, v2]);
+    let pad = Vec3::splat(4.0 * MAX_EDGE_SLACK * b.extent().max_element());
+    crate::Aabb { min: b.min - pad, max: b.max + pad }
+}
+
 /// The unnormalised geometric normal `(v1 - v0) × (v2 - v0)` (counter-clockwise = front).
 #[inline]
 pub fn triangle_normal(v0: Vec3, v1: Vec3, v2: Vec3) -> Vec3 {

@@ -15,7 +15,7 @@
 
 use crate::scene::{Scene, SphereObject};
 use glam::Vec3;
-use phr_bvh::triangle::{intersect_triangle, triangle_normal};
+use phr_bvh::triangle::{intersect_triangle, triangle_bounds, triangle_normal};
 use phr_bvh::{closest_hit_counted, Aabb, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
 
 /// A closest hit: distance, primitive, and barycentrics for triangles.
@@ -93,7 +93,7 @@ impl Geometry {
     /// Recomputes the primitive boxes (after vertices moved).
     pub fn update_boxes(&mut self) {
         use rayon::prelude::*;
-        let mut boxes: Vec<Aabb> = self.triangles.par_iter().map(|t| Aabb::from_points(t)).collect();
+        let mut boxes: Vec<Aabb> = self.triangles.par_iter().map(|&[a, b, c]| triangle_bounds(a, b, c)).collect();
         boxes.extend(self.spheres.iter().map(|s| s.sphere.bounds()));
         self.boxes = boxes;
     }
