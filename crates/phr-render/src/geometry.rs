@@ -205,6 +205,23 @@ impl Geometry {
         best
     }
 
+    /// Whether anything lies along `ray` within its interval (shadow rays): stops at the
+    /// first hit.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.wide.any_hit_leaves(ray, |first, count, r| {
+            (first..first + count).any(|i| {
+                let prim = self.wide.prim_indices[i as usize] as usize;
+                if prim < self.triangles.len() {
+                    self.packed.intersect(i, r).is_some()
+                } else if prim - self.triangles.len() < self.spheres.len() {
+                    self.spheres[prim - self.triangles.len()].sphere.intersect(r).is_some()
+                } else {
+                    false
+                }
+            })
+        })
+    }
+
     /// [`Geometry::intersect`], also counting traversal steps.
     pub fn intersect_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> Option<Hit> {
         let mut r = *ray;

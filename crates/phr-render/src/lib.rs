@@ -12,6 +12,7 @@ pub mod error;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
+pub mod lights;
 pub mod load;
 pub mod material;
 pub mod output;

@@ -11,6 +11,7 @@ use crate::camera::{Camera, CameraDesc};
 use crate::film::Film;
 use crate::geometry::Geometry;
 use crate::integrator::PathTracer;
+use crate::lights::LightSet;
 use crate::material::Material;
 use crate::output::{srgb_encode, turbo};
 use crate::render::Renderer;
@@ -59,6 +60,9 @@ pub struct PipelineSettings {
     /// Maximum ray segments per path (camera ray included).
     pub max_depth: u32,
     pub mode: ViewMode,
+    /// Sample the emissive triangles at diffuse hits (next-event estimation, see
+    /// [`crate::lights`]) instead of relying on paths hitting them.
+    pub explicit_lights: bool,
 }
 
 /// What one frame cost and produced.
@@ -107,6 +111,8 @@ pub struct FramePipeline {
     animator: Animator,
     /// PHR's auxiliary tree, kept across frames and refitted (PHR builders only).
     dynamic: Option<DynamicBvh>,
+    /// The emissive triangles, when explicit light sampling is on.
+    lights: Option<LightSet>,
     settings: PipelineSettings,
     camera: CameraDesc,
     film: Film,
@@ -133,6 +139,7 @@ impl FramePipeline {
             geometry,
             animator,
             dynamic: None,
+            lights: None,
             settings,
             camera,
             film,
@@ -214,12 +221,18 @@ impl FramePipeline {
         if moved {
             self.time += dt * self.speed;
             self.animator.pose(&mut self.geometry, self.time);
+            if let Some(lights) = &mut self.lights {
+                lights.refresh(&self.geometry, &self.scene.materials);
+            }
             report.pose_ms = ms_since(start);
             self.restart();
         }
         if moved || self.tree_dirty {
             self.rebuild(&mut report);
             self.restart();
+        }
+        if self.settings.explicit_lights && self.lights.is_none() {
+            self.lights = Some(LightSet::new(&self.geometry, &self.scene.materials));
         }
         let render_start = Instant::now();
         let (pixels, rays) = self.render();
@@ -278,6 +291,7 @@ impl FramePipeline {
                 materials: &self.scene.materials,
                 background: &self.scene.background,
                 max_depth: s.max_depth.max(1),
+                lights: self.lights.as_ref().filter(|_| s.explicit_lights),
             },
             camera: Camera::new(&self.camera, s.width, s.height),
             width: s.width,

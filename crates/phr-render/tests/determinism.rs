@@ -36,6 +36,7 @@ fn render_with(scene: &Scene, threads: usize, seed: u64, builder: Builder) -> (V
                 materials: &scene.materials,
                 background: &scene.background,
                 max_depth: MAX_DEPTH,
+                lights: None,
             },
             camera: Camera::new(&view, WIDTH, HEIGHT),
             width: WIDTH,

@@ -10,6 +10,7 @@ use phr_render::camera::Camera;
 use phr_render::film::Film;
 use phr_render::geometry::Geometry;
 use phr_render::integrator::PathTracer;
+use phr_render::lights::LightSet;
 use phr_render::output::write_image;
 use phr_render::render::Renderer;
 use phr_render::scene::json::load_scene_file;
@@ -23,12 +24,22 @@ fn shared() -> PathBuf {
 /// Renders `name` at its own size and depth with `spp` samples, writes the linear mean as PFM
 /// and runs the comparison; panics with the tool's output on failure.
 fn check_against_reference(name: &str, spp: u32) {
+    check_with(name, spp, false);
+}
+
+/// [`check_against_reference`], optionally with explicit light sampling (which must converge
+/// to the same image).
+fn check_with(name: &str, spp: u32, nee: bool) {
     let reference = shared().join("reference");
     let scene_file = reference.join("scenes").join(format!("{name}.json"));
     assert!(scene_file.is_file(), "missing {} (shared/ must sit next to the repository)", scene_file.display());
     let scene = load_scene_file(&scene_file).unwrap();
     let mut geometry = Geometry::new(&scene);
     geometry.build(|b| Builder::default().build(b));
+    let lights = nee.then(|| LightSet::new(&geometry, &scene.materials));
+    if nee {
+        assert!(!lights.as_ref().unwrap().is_empty(), "{name} has no emissive triangles to sample");
+    }
     let (w, h) = (scene.settings.width, scene.settings.height);
     let renderer = Renderer {
         tracer: PathTracer {
@@ -36,6 +47,7 @@ fn check_against_reference(name: &str, spp: u32) {
             materials: &scene.materials,
             background: &scene.background,
             max_depth: scene.settings.max_depth,
+            lights: lights.as_ref(),
         },
         camera: Camera::new(&scene.view(None).unwrap(), w, h),
         width: w,
@@ -57,13 +69,23 @@ fn check_against_reference(name: &str, spp: u32) {
         .expect("python3 must be installed to compare with the references");
     let _ = std::fs::remove_file(&out);
     let text = format!("{}{}", String::from_utf8_lossy(&result.stdout), String::from_utf8_lossy(&result.stderr));
-    println!("{name}, {spp} spp:\n{text}");
+    println!("{name}, {spp} spp, nee {nee}:\n{text}");
     assert!(result.status.success() && text.contains("PASS"), "{name} does not match the reference:\n{text}");
 }
 
 #[test]
 fn cornell_obj_matches_reference() {
     check_against_reference("cornell_obj", 256);
+}
+
+#[test]
+fn cornell_obj_with_explicit_light_sampling_matches_reference() {
+    check_with("cornell_obj", 64, true);
+}
+
+#[test]
+fn cornell_glass_mirror_with_explicit_light_sampling_matches_reference() {
+    check_with("cornell_glass_mirror", 64, true);
 }
 
 #[test]

@@ -91,6 +91,7 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
                 materials: &scene.materials,
                 background: &scene.background,
                 max_depth: scene.settings.max_depth.min(8),
+                lights: None,
             },
             camera: camera.clone(),
             width: args.width,

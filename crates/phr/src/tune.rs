@@ -89,7 +89,13 @@ pub fn measure_frame(
 ) -> (f64, f64) {
     geometry.set_bvh(bvh);
     let renderer = Renderer {
-        tracer: PathTracer { geometry, materials: &scene.materials, background: &scene.background, max_depth },
+        tracer: PathTracer {
+            geometry,
+            materials: &scene.materials,
+            background: &scene.background,
+            max_depth,
+            lights: None,
+        },
         camera: camera.clone(),
         width: w,
         height: h,

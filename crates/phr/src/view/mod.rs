@@ -54,6 +54,18 @@ pub struct ViewArgs {
     /// Start with the animation paused.
     #[arg(long)]
     paused: bool,
+    /// How lights are found: `explicit` samples the emissive triangles at diffuse hits
+    /// (next-event estimation: the same expected image, far less noise from small lights, the
+    /// viewer's default); `implicit` only counts lights that paths happen to hit, the thesis's
+    /// estimator.
+    #[arg(long, value_enum, default_value = "explicit")]
+    light_sampling: LightSampling,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum LightSampling {
+    Explicit,
+    Implicit,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -116,6 +128,7 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
         height: args.height,
         max_depth: args.max_depth.unwrap_or(scene.settings.max_depth.min(8)).max(1),
         mode: args.mode.into(),
+        explicit_lights: args.light_sampling == LightSampling::Explicit,
     };
     let mut pipeline = FramePipeline::new(scene, settings, camera);
     pipeline.playing = !args.paused;
