@@ -74,7 +74,7 @@ fn viewer_renders_and_follows_input_under_xvfb() {
     let display = format!(":{n}");
     let _xvfb = Kill(
         Command::new("Xvfb")
-            .args([display.as_str(), "-screen", "0", "1280x800x24", "-nolisten", "tcp"])
+            .args([display.as_str(), "-screen", "0", "1280x1024x24", "-nolisten", "tcp"])
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()

@@ -180,7 +180,7 @@ pub fn run(args: &ViewArgs, pipeline: FramePipeline) -> Result<(), WindowError> 
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default().with_title(title).with_inner_size([
             300.0 + (2 * args.width).clamp(512, 1280) as f32,
-            (2 * args.height).clamp(660, 960) as f32,
+            (2 * args.height).clamp(860, 1000) as f32,
         ]),
         ..Default::default()
     };
@@ -484,6 +484,7 @@ impl ViewerApp {
                 ui.end_row();
             };
             row("triangles", format!("{}", self.triangles));
+            row("pose", format!("{:.2} ms", report.pose_ms));
             row("refit", format!("{:.2} ms", report.refit_ms));
             row("PHR / build", format!("{:.2} ms", report.build_ms));
             row("wide collapse", format!("{:.2} ms", report.wide_ms));
