@@ -6,6 +6,7 @@ use anyhow::Result;
 use indicatif::ProgressBar;
 use phr_bvh::phr::PhrOptions;
 use phr_bvh::{sah_cost, Builder, Bvh, SahConstants};
+use phr_bvh::{PackedTriangles, WideBvh};
 use phr_render::camera::Camera;
 use phr_render::geometry::Geometry;
 use phr_render::output::write_heatmap;
@@ -52,6 +53,9 @@ pub struct Row {
     /// Render time of one 1-spp frame, mean over the views.
     pub render_ms: f64,
     pub mrays: f64,
+    /// Collapsing the tree to the renderer's wide BVH and packing its triangles (median).
+    pub collapse_ms: f64,
+    /// Build (auxiliary LBVH included) + collapse + render.
     pub frame_ms: f64,
     /// Tuning time (PHR-Grid, PHR-BO), in ms and in frames of the tuned configuration.
     pub tune_ms: Option<f64>,
@@ -108,6 +112,23 @@ impl SceneCtx<'_> {
         }
         let last = last.expect("at least one repeat");
         (Stat::of(aux), Stat::of(build), Stat::of(total), last.phr.map(|s| s.build_cost), last.bvh)
+    }
+
+    /// Median time of what `Geometry::set_bvh` does before a frame can be rendered: the
+    /// collapse to the wide BVH and the packing of the triangles (from fresh memory).
+    fn collapse(&self, bvh: &Bvh) -> f64 {
+        let mut times: Vec<f64> = (0..self.repeats)
+            .map(|_| {
+                let start = Instant::now();
+                let wide = WideBvh::<{ phr_render::geometry::WIDTH }>::from_bvh(bvh);
+                let packed = PackedTriangles::new(&wide.prim_indices, &self.geometry.triangles);
+                let ms = start.elapsed().as_secs_f64() * 1e3;
+                drop((wide, packed));
+                ms
+            })
+            .collect();
+        times.sort_by(f64::total_cmp);
+        times[times.len() / 2]
     }
 
     /// Mean over the views of the median 1-spp frame; and Mrays/s.
@@ -175,8 +196,9 @@ pub fn measure_scene(
             let (aux_ms, build_ms, total_ms, build_cost, bvh) = ctx.build(&builder);
             let sah_21 = sah_cost(&bvh, SahConstants::THESIS);
             let sah_11 = sah_cost(&bvh, SahConstants::UNIT);
+            let collapse_ms = ctx.collapse(&bvh);
             let (render_ms, mrays, _) = ctx.render(bvh, res);
-            let frame_ms = total_ms.median + render_ms;
+            let frame_ms = total_ms.median + collapse_ms + render_ms;
             let params = match builder {
                 Builder::Phr(o) => Some((o.alpha as f64, o.delta as f64)),
                 _ => None,
@@ -195,6 +217,7 @@ pub fn measure_scene(
                 build_cost,
                 render_ms,
                 mrays,
+                collapse_ms,
                 frame_ms,
                 tune_ms,
                 tune_frames: tune_ms.map(|t| t / frame_ms),
