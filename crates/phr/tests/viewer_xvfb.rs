@@ -13,9 +13,27 @@ struct Kill(Child);
 
 impl Drop for Kill {
     fn drop(&mut self) {
+        // SIGTERM first, so that Xvfb removes its lock file and socket (a killed server leaves
+        // them behind, and a later run on the same display number would find a dead socket).
+        let _ = Command::new("kill").arg(self.0.id().to_string()).status();
+        for _ in 0..50 {
+            if matches!(self.0.try_wait(), Ok(Some(_))) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
+}
+
+/// A display number with neither a lock file nor a socket (stale ones included).
+fn free_display() -> u32 {
+    (90 + std::process::id() % 100..600)
+        .find(|n| {
+            !Path::new(&format!("/tmp/.X{n}-lock")).exists() && !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
+        })
+        .expect("a free X display number")
 }
 
 fn have(tool: &str) -> bool {
@@ -70,7 +88,7 @@ fn viewer_renders_and_follows_input_under_xvfb() {
         eprintln!("skipped: Xvfb or xdotool not installed");
         return;
     }
-    let n = 90 + std::process::id() % 100;
+    let n = free_display();
     let display = format!(":{n}");
     let _xvfb = Kill(
         Command::new("Xvfb")
@@ -84,7 +102,7 @@ fn viewer_renders_and_follows_input_under_xvfb() {
 
     let out: PathBuf = std::env::temp_dir().join(format!("phr-viewer-xvfb-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
-    let _viewer = Kill(
+    let mut viewer = Kill(
         Command::new(env!("CARGO_BIN_EXE_phr"))
             .args(["view", "builtin", "--width", "128", "--height", "128", "--out"])
             .arg(&out)
@@ -97,6 +115,9 @@ fn viewer_renders_and_follows_input_under_xvfb() {
     );
     let mut window = String::new();
     wait_for("the viewer window", Duration::from_secs(60), || {
+        if let Ok(Some(status)) = viewer.0.try_wait() {
+            panic!("the viewer exited ({status}) before opening a window");
+        }
         window = xdotool(&display, &["search", "--name", "^phr"]).lines().next().unwrap_or("").to_string();
         !window.is_empty()
     });
