@@ -20,6 +20,7 @@
 //! Every variant's hits are checked against the binary reference (same primitive and `t`);
 //! a mismatch is an error. Output: `bench-rays.csv`, `bench-rays.md` (tables) in `--out`.
 
+use crate::bench::peers::{peer_script, write_counted};
 use crate::bench_build::RaySet;
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -115,12 +116,7 @@ fn suite_dir() -> Result<PathBuf> {
 }
 
 fn script() -> Option<PathBuf> {
-    [
-        PathBuf::from("bench/embree_rays.py"),
-        PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../bench/embree_rays.py")),
-    ]
-    .into_iter()
-    .find(|p| p.is_file())
+    peer_script("embree_rays.py")
 }
 
 pub fn run(args: &BenchRaysArgs) -> Result<()> {
@@ -464,19 +460,6 @@ fn note(progress: &ProgressBar, message: String) {
     progress.suspend(|| eprintln!("{message}"));
 }
 
-fn write_counted(path: &Path, count: usize, floats: impl Iterator<Item = f32>) -> Result<()> {
-    write_atomically(path, |tmp| {
-        let mut f = std::io::BufWriter::new(std::fs::File::create(tmp)?);
-        f.write_all(&(count as u32).to_le_bytes())?;
-        for x in floats {
-            f.write_all(&x.to_le_bytes())?;
-        }
-        f.flush()
-    })
-    .with_context(|| format!("writing {}", path.display()))
-}
-
-/// The rays (bench/peers.py's format) and our closest hits, for Embree's agreement check.
 fn write_rays(dir: &Path, kind: &str, rays: &[Ray], hits: &[Option<(u32, f32)>]) -> Result<()> {
     let floats = rays.iter().flat_map(|r| [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z]);
     write_counted(&dir.join(format!("rays_{kind}.bin")), rays.len(), floats)?;

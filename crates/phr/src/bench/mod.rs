@@ -10,7 +10,7 @@
 //! `--peers`, Embree on the same triangles and rays ([`peers`]).
 
 mod measure;
-mod peers;
+pub(crate) mod peers;
 mod plots;
 mod report;
 

@@ -30,13 +30,16 @@ pub struct PeerRow {
     pub mitsuba: String,
 }
 
-fn script() -> Option<PathBuf> {
-    [PathBuf::from("bench/peers.py"), PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../bench/peers.py"))]
+/// The peer script `bench/NAME`, from the current directory or the checkout.
+pub(crate) fn peer_script(name: &str) -> Option<PathBuf> {
+    [PathBuf::from("bench").join(name), PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../bench")).join(name)]
         .into_iter()
         .find(|p| p.is_file())
 }
 
-fn write_counted(path: &Path, count: usize, floats: impl Iterator<Item = f32>) -> Result<()> {
+/// Writes a count and then the floats, little-endian: the ray and triangle files the peer
+/// scripts read.
+pub(crate) fn write_counted(path: &Path, count: usize, floats: impl Iterator<Item = f32>) -> Result<()> {
     write_atomically(path, |tmp| {
         let mut f = std::io::BufWriter::new(std::fs::File::create(tmp)?);
         f.write_all(&(count as u32).to_le_bytes())?;
@@ -74,7 +77,7 @@ pub fn run(
     res: u32,
     out: &Path,
 ) -> Result<Option<PeerRow>> {
-    let Some(script) = script() else {
+    let Some(script) = peer_script("peers.py") else {
         println!("peers: skipped, bench/peers.py not found (run from the repository)");
         return Ok(None);
     };
