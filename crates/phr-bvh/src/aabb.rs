@@ -65,6 +65,18 @@ impl Aabb {
         self.max - self.min
     }
 
+    /// The axis (0, 1, 2) along which the box is longest (the first of equals).
+    pub fn longest_axis(&self) -> usize {
+        let e = self.extent();
+        if e.x >= e.y && e.x >= e.z {
+            0
+        } else if e.y >= e.z {
+            1
+        } else {
+            2
+        }
+    }
+
     #[inline]
     pub fn center(&self) -> Vec3 {
         0.5 * (self.min + self.max)

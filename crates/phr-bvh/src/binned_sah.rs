@@ -5,7 +5,7 @@
 
 use crate::aabb::Aabb;
 use crate::node::Bvh;
-use crate::sah::LeafPolicy;
+use crate::sah::{LeafPolicy, MEDIAN_SPLIT_DEPTH};
 use crate::topdown::{assemble, Built, Piece};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -70,7 +70,7 @@ pub fn build_binned_sah(boxes: &[Aabb], options: &BinnedSahOptions) -> Bvh {
     let centers = boxes.par_iter().map(Aabb::center).collect();
     let ctx = Ctx { boxes, centers, bins: options.bins.clamp(2, MAX_BINS), leaf: options.leaf };
     let mut prims: Vec<u32> = (0..boxes.len() as u32).collect();
-    assemble(ctx.build(&mut prims))
+    assemble(ctx.build(&mut prims, 0))
 }
 
 /// Maps a centroid coordinate to its bin on one axis.
@@ -124,13 +124,17 @@ impl Ctx<'_> {
         }
     }
 
-    /// Leaf (`None`) or the number of primitives moved to the front (left) of `prims`.
-    fn decide(&self, prims: &mut [u32], bounds: &Aabb, centroids: &Aabb) -> Option<usize> {
+    /// Leaf (`None`) or the number of primitives moved to the front (left) of `prims`, for
+    /// a node at `depth`.
+    fn decide(&self, prims: &mut [u32], bounds: &Aabb, centroids: &Aabb, depth: u32) -> Option<usize> {
         let n = prims.len();
         if n <= 1 {
             return None;
         }
         let extent = centroids.extent();
+        if depth >= MEDIAN_SPLIT_DEPTH {
+            return self.leaf.must_split(n as u32).then(|| self.median_partition(prims, centroids.longest_axis()));
+        }
         if extent.max_element() <= 0.0 {
             // All centroids coincide: no plane separates them; split by count if we must.
             return if self.leaf.must_split(n as u32) { Some(n / 2) } else { None };
@@ -182,14 +186,24 @@ impl Ctx<'_> {
         Some(i)
     }
 
-    fn build(&self, prims: &mut [u32]) -> Built {
+    /// Moves the half of `prims` with the smaller centroids along `axis` to the front: the
+    /// object median of [`MEDIAN_SPLIT_DEPTH`].
+    fn median_partition(&self, prims: &mut [u32], axis: usize) -> usize {
+        let k = prims.len() / 2;
+        prims.select_nth_unstable_by(k, |&a, &b| {
+            self.centers[a as usize][axis].total_cmp(&self.centers[b as usize][axis]).then(a.cmp(&b))
+        });
+        k
+    }
+
+    fn build(&self, prims: &mut [u32], depth: u32) -> Built {
         if prims.len() <= PARALLEL_GRAIN {
             let mut piece = Piece::new();
-            self.build_piece(&mut piece, prims);
+            self.build_piece(&mut piece, prims, depth);
             return Built::Piece(piece);
         }
         let (bounds, centroids) = self.bounds_and_centroids(prims);
-        match self.decide(prims, &bounds, &centroids) {
+        match self.decide(prims, &bounds, &centroids, depth) {
             None => {
                 let mut piece = Piece::new();
                 piece.set_leaf(0, bounds, prims.iter().copied());
@@ -197,24 +211,24 @@ impl Ctx<'_> {
             }
             Some(k) => {
                 let (l, r) = prims.split_at_mut(k);
-                let (left, right) = rayon::join(|| self.build(l), || self.build(r));
+                let (left, right) = rayon::join(|| self.build(l, depth + 1), || self.build(r, depth + 1));
                 Built::Split { bounds, children: vec![left, right] }
             }
         }
     }
 
-    fn build_piece(&self, piece: &mut Piece, prims: &mut [u32]) {
-        let mut stack = vec![(prims, 0u32)];
-        while let Some((prims, slot)) = stack.pop() {
+    fn build_piece(&self, piece: &mut Piece, prims: &mut [u32], depth: u32) {
+        let mut stack = vec![(prims, 0u32, depth)];
+        while let Some((prims, slot, depth)) = stack.pop() {
             let (bounds, centroids) = self.bounds_and_centroids(prims);
-            match self.decide(prims, &bounds, &centroids) {
+            match self.decide(prims, &bounds, &centroids, depth) {
                 None => piece.set_leaf(slot, bounds, prims.iter().copied()),
                 Some(k) => {
                     let first = piece.alloc_children(2);
                     piece.set_interior(slot, bounds, first, 2);
                     let (l, r) = prims.split_at_mut(k);
-                    stack.push((r, first + 1));
-                    stack.push((l, first));
+                    stack.push((r, first + 1, depth + 1));
+                    stack.push((l, first, depth + 1));
                 }
             }
         }

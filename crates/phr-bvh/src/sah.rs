@@ -37,3 +37,15 @@ impl LeafPolicy {
         n > self.max_leaf_size
     }
 }
+
+/// The depth from which the top-down builders stop asking the SAH and split by count (an
+/// object median), as Embree's builders fall back past their maximum depth.
+///
+/// On nested or coincident geometry (10⁶ copies of one triangle, the duplicates of scanned
+/// and CAD data) the SAH legitimately peels one primitive a level off a cluster, which makes
+/// a tree as deep as the input is large: recursion overflows the stack, the traversal's stack
+/// grows with the depth, and a full sweep turns quadratic. Past this depth every split halves
+/// the primitives, so no tree is deeper than this plus `log2(n)`. Real scenes' SAH trees never
+/// reach it (the deepest leaf of PHR-HQ and the full sweep: Sponza 22, the dragon 26), so
+/// their trees do not change.
+pub const MEDIAN_SPLIT_DEPTH: u32 = 48;

@@ -7,7 +7,7 @@
 
 use crate::aabb::Aabb;
 use crate::node::Bvh;
-use crate::sah::LeafPolicy;
+use crate::sah::{LeafPolicy, MEDIAN_SPLIT_DEPTH};
 use crate::topdown::{assemble, Built, Piece};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -48,7 +48,7 @@ pub fn build_sweep_sah(boxes: &[Aabb], options: &SweepSahOptions) -> Bvh {
     let (mut x, mut y, mut z) = (sorted(0), sorted(1), sorted(2));
     let goes_left = (0..boxes.len()).map(|_| AtomicBool::new(false)).collect();
     let ctx = Ctx { boxes, goes_left, leaf: options.leaf };
-    let built = ctx.build(Orders { axes: [&mut x, &mut y, &mut z] });
+    let built = ctx.build(Orders { axes: [&mut x, &mut y, &mut z] }, 0);
     assemble(built)
 }
 
@@ -87,6 +87,40 @@ impl Ctx<'_> {
         best
     }
 
+    /// The object median along the axis where the centroids spread most: what a node gets
+    /// when its centroids coincide (no plane separates them) or it lies past
+    /// [`MEDIAN_SPLIT_DEPTH`].
+    fn median_split(&self, orders: &Orders) -> Split {
+        let n = orders.axes[0].len();
+        let spread = |axis: usize| {
+            let order = &orders.axes[axis];
+            self.centroid(order[n - 1], axis) - self.centroid(order[0], axis)
+        };
+        let axis = (0..3).max_by(|&a, &b| spread(a).total_cmp(&spread(b))).unwrap_or(0);
+        let k = n / 2;
+        let (l, r) = orders.axes[axis].split_at(k);
+        Split {
+            axis,
+            left_count: k,
+            area_count: self.bounds(l).surface_area() * k as f32 + self.bounds(r).surface_area() * (n - k) as f32,
+        }
+    }
+
+    /// Twice the centroid of primitive `p` along `axis` (the sort key of the orders).
+    fn centroid(&self, p: u32, axis: usize) -> f32 {
+        let b = &self.boxes[p as usize];
+        b.min[axis] + b.max[axis]
+    }
+
+    /// Whether every primitive's centroid is the same point (the orders' ends agree on every
+    /// axis).
+    fn centroids_coincide(&self, orders: &Orders) -> bool {
+        (0..3).all(|axis| {
+            let order = &orders.axes[axis];
+            self.centroid(order[0], axis) == self.centroid(order[order.len() - 1], axis)
+        })
+    }
+
     /// Applies `split`: marks the left primitives, partitions the other two orders stably.
     fn partition(&self, orders: &mut Orders, split: &Split, scratch: &mut Vec<u32>) {
         let order = &orders.axes[split.axis];
@@ -110,11 +144,12 @@ impl Ctx<'_> {
         }
     }
 
-    /// Leaf or split for a node; on a split the orders are partitioned.
+    /// Leaf or split for a node at `depth`; on a split the orders are partitioned.
     fn decide(
         &self,
         orders: &mut Orders,
         bounds: &Aabb,
+        depth: u32,
         right_area: &mut Vec<f32>,
         scratch: &mut Vec<u32>,
     ) -> Option<usize> {
@@ -122,7 +157,11 @@ impl Ctx<'_> {
         if n <= 1 {
             return None;
         }
-        let split = self.best_split(orders, right_area);
+        let split = if depth >= MEDIAN_SPLIT_DEPTH || self.centroids_coincide(orders) {
+            self.median_split(orders)
+        } else {
+            self.best_split(orders, right_area)
+        };
         if !self.leaf.must_split(n as u32) && self.leaf.prefers_leaf(n as u32, bounds.surface_area(), split.area_count)
         {
             return None;
@@ -131,15 +170,15 @@ impl Ctx<'_> {
         Some(split.left_count)
     }
 
-    fn build(&self, mut orders: Orders) -> Built {
+    fn build(&self, mut orders: Orders, depth: u32) -> Built {
         let n = orders.axes[0].len();
         if n <= PARALLEL_GRAIN {
             let mut piece = Piece::new();
-            self.build_piece(&mut piece, orders);
+            self.build_piece(&mut piece, orders, depth);
             return Built::Piece(piece);
         }
         let bounds = self.bounds(orders.axes[0]);
-        let Some(k) = self.decide(&mut orders, &bounds, &mut Vec::new(), &mut Vec::new()) else {
+        let Some(k) = self.decide(&mut orders, &bounds, depth, &mut Vec::new(), &mut Vec::new()) else {
             let mut piece = Piece::new();
             piece.set_leaf(0, bounds, orders.axes[0].iter().copied());
             return Built::Piece(piece);
@@ -148,17 +187,19 @@ impl Ctx<'_> {
         let (xl, xr) = x.split_at_mut(k);
         let (yl, yr) = y.split_at_mut(k);
         let (zl, zr) = z.split_at_mut(k);
-        let (left, right) =
-            rayon::join(|| self.build(Orders { axes: [xl, yl, zl] }), || self.build(Orders { axes: [xr, yr, zr] }));
+        let (left, right) = rayon::join(
+            || self.build(Orders { axes: [xl, yl, zl] }, depth + 1),
+            || self.build(Orders { axes: [xr, yr, zr] }, depth + 1),
+        );
         Built::Split { bounds, children: vec![left, right] }
     }
 
-    fn build_piece(&self, piece: &mut Piece, orders: Orders) {
+    fn build_piece(&self, piece: &mut Piece, orders: Orders, depth: u32) {
         let (mut right_area, mut scratch) = (Vec::new(), Vec::new());
-        let mut stack = vec![(orders, 0u32)];
-        while let Some((mut orders, slot)) = stack.pop() {
+        let mut stack = vec![(orders, 0u32, depth)];
+        while let Some((mut orders, slot, depth)) = stack.pop() {
             let bounds = self.bounds(orders.axes[0]);
-            match self.decide(&mut orders, &bounds, &mut right_area, &mut scratch) {
+            match self.decide(&mut orders, &bounds, depth, &mut right_area, &mut scratch) {
                 None => piece.set_leaf(slot, bounds, orders.axes[0].iter().copied()),
                 Some(k) => {
                     let first = piece.alloc_children(2);
@@ -167,8 +208,8 @@ impl Ctx<'_> {
                     let (xl, xr) = x.split_at_mut(k);
                     let (yl, yr) = y.split_at_mut(k);
                     let (zl, zr) = z.split_at_mut(k);
-                    stack.push((Orders { axes: [xr, yr, zr] }, first + 1));
-                    stack.push((Orders { axes: [xl, yl, zl] }, first));
+                    stack.push((Orders { axes: [xr, yr, zr] }, first + 1, depth + 1));
+                    stack.push((Orders { axes: [xl, yl, zl] }, first, depth + 1));
                 }
             }
         }

@@ -22,11 +22,11 @@ pub mod split;
 
 use crate::aabb::Aabb;
 use crate::node::{Bvh, MAX_BRANCHING};
-use crate::sah::LeafPolicy;
+use crate::sah::{LeafPolicy, MEDIAN_SPLIT_DEPTH};
 use crate::topdown::{assemble, Built, Piece};
 use cut::{cut_bounds, cut_prims, AuxView, CutNode};
 use rayon::prelude::*;
-use split::{best_split, SplitScratch};
+use split::{best_split, median_split, CutSplit, SplitScratch};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// What a cut node's weight counts in the sweep.
@@ -200,7 +200,7 @@ impl Ctx<'_> {
             return Built::Piece(piece);
         }
         let mut scratch = Scratch::default();
-        let (bounds, ranges) = self.partition(&mut cut, 0, &mut scratch);
+        let (bounds, ranges) = self.partition(&mut cut, 0, depth, &mut scratch);
         self.build_cost.fetch_add(scratch.build_cost, Ordering::Relaxed);
         if ranges.len == 0 {
             let mut piece = Piece::new();
@@ -237,7 +237,7 @@ impl Ctx<'_> {
         let mut tasks = vec![(0usize, pool.len(), depth, 0u32)];
         while let Some((start, end, depth, slot)) = tasks.pop() {
             pool.truncate(end);
-            let (bounds, ranges) = self.partition(&mut pool, start, &mut scratch);
+            let (bounds, ranges) = self.partition(&mut pool, start, depth, &mut scratch);
             if ranges.len == 0 {
                 let prims = self.gather(&pool[start..], &mut scratch);
                 piece.set_leaf(slot, bounds, prims);
@@ -260,10 +260,20 @@ impl Ctx<'_> {
         self.build_cost.fetch_add(scratch.build_cost, Ordering::Relaxed);
     }
 
-    /// Decides leaf or children for the node whose cut is `pool[start..]`, and counts the
-    /// cut into the build cost. Returns the node's box and its children as ranges of the
-    /// (reordered) cut, relative to `start`.
-    fn partition(&self, pool: &mut Vec<CutNode>, start: usize, scratch: &mut Scratch) -> (Aabb, Ranges) {
+    /// The split of a node's cut at `depth`: the full sweep, or the median past
+    /// [`MEDIAN_SPLIT_DEPTH`].
+    fn split(cut: &mut [CutNode], depth: u32, scratch: &mut Scratch) -> CutSplit {
+        if depth >= MEDIAN_SPLIT_DEPTH {
+            median_split(cut)
+        } else {
+            best_split(cut, &mut scratch.split)
+        }
+    }
+
+    /// Decides leaf or children for the node at `depth` whose cut is `pool[start..]`, and
+    /// counts the cut into the build cost. Returns the node's box and its children as ranges
+    /// of the (reordered) cut, relative to `start`.
+    fn partition(&self, pool: &mut Vec<CutNode>, start: usize, depth: u32, scratch: &mut Scratch) -> (Aabb, Ranges) {
         scratch.build_cost += (pool.len() - start) as u64;
         // A cut of one interior node is opened: a node with a single child would only add a
         // traversal step, and keeping it whole is the thesis code's giant-leaf defect.
@@ -278,7 +288,7 @@ impl Ctx<'_> {
         }
         let leaf = &self.options.leaf;
         let n = cut_prims(cut);
-        let first = best_split(cut, &mut scratch.split);
+        let first = Self::split(cut, depth, scratch);
         if !leaf.must_split(n) && leaf.prefers_leaf(n, bounds.surface_area(), first.area_count) {
             return (bounds, Ranges::LEAF);
         }
@@ -300,7 +310,7 @@ impl Ctx<'_> {
             let (a, b) = ranges.ranges[i];
             let sub = &mut cut[a as usize..b as usize];
             let n = cut_prims(sub);
-            let s = best_split(sub, &mut scratch.split);
+            let s = Self::split(sub, depth, scratch);
             if leaf.must_split(n) || !leaf.prefers_leaf(n, area, s.area_count) {
                 let mid = a + s.left_len as u32;
                 ranges.ranges[i] = (a, mid);

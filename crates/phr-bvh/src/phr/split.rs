@@ -38,12 +38,11 @@ pub struct SplitScratch {
 pub fn best_split(cut: &mut [CutNode], scratch: &mut SplitScratch) -> CutSplit {
     let m = cut.len();
     debug_assert!(m >= 2);
-    let side = |half: &[CutNode]| {
-        let b = half.iter().fold(Aabb::EMPTY, |b, n| b.union(n.bounds));
-        b.surface_area() * half.iter().map(|n| n.prims).sum::<u32>() as f32
-    };
     if m == 2 {
-        return CutSplit { left_len: 1, area_count: side(&cut[..1]) + side(&cut[1..]) };
+        return CutSplit { left_len: 1, area_count: side_cost(&cut[..1]) + side_cost(&cut[1..]) };
+    }
+    if centres_coincide(cut) {
+        return median_split(cut);
     }
     let total_weight: f32 = cut.iter().map(|n| n.weight).sum();
     scratch.right_area.resize(m, 0.0);
@@ -87,7 +86,43 @@ pub fn best_split(cut: &mut [CutNode], scratch: &mut SplitScratch) -> CutSplit {
         cut.copy_from_slice(&scratch.reordered);
     }
     let left_len = best.1;
-    CutSplit { left_len, area_count: side(&cut[..left_len]) + side(&cut[left_len..]) }
+    CutSplit { left_len, area_count: side_cost(&cut[..left_len]) + side_cost(&cut[left_len..]) }
+}
+
+/// Splits `cut` (at least two nodes) at its primitive median along the axis where the nodes'
+/// centres spread most: each side gets at least one node and as close to half of the
+/// primitives as the nodes allow. What a cut gets when its centres coincide (no sweep position
+/// separates them) or its node lies past [`crate::sah::MEDIAN_SPLIT_DEPTH`].
+pub fn median_split(cut: &mut [CutNode]) -> CutSplit {
+    let m = cut.len();
+    debug_assert!(m >= 2);
+    let centres = cut.iter().fold(Aabb::EMPTY, |b, n| b.grown(n.bounds.min + n.bounds.max));
+    let axis = centres.longest_axis();
+    cut.sort_unstable_by(|a, b| {
+        (a.bounds.min[axis] + a.bounds.max[axis])
+            .total_cmp(&(b.bounds.min[axis] + b.bounds.max[axis]))
+            .then(a.index.cmp(&b.index))
+    });
+    let total: u64 = cut.iter().map(|n| u64::from(n.prims)).sum();
+    let mut left = 0u64;
+    let mut left_len = 0;
+    while left_len < m - 1 && (left_len == 0 || 2 * left < total) {
+        left += u64::from(cut[left_len].prims);
+        left_len += 1;
+    }
+    CutSplit { left_len, area_count: side_cost(&cut[..left_len]) + side_cost(&cut[left_len..]) }
+}
+
+/// `A · n` of one side: its box's area times its primitives.
+fn side_cost(half: &[CutNode]) -> f32 {
+    let b = half.iter().fold(Aabb::EMPTY, |b, n| b.union(n.bounds));
+    b.surface_area() * half.iter().map(|n| n.prims).sum::<u32>() as f32
+}
+
+/// Whether every node of the cut has the same centre.
+fn centres_coincide(cut: &[CutNode]) -> bool {
+    let c = cut[0].bounds.min + cut[0].bounds.max;
+    cut[1..].iter().all(|n| n.bounds.min + n.bounds.max == c)
 }
 
 /// The bits of a float, mapped so that integer order is float order (negative floats have
