@@ -314,3 +314,57 @@ fn rebuilding_in_place_equals_a_fresh_collapse() {
         }
     }
 }
+
+/// Rays with NaN or infinite origins, directions or intervals (what a scene at the edge of
+/// f32's range produces) hit nothing and stay inside the traversal's stack and node array, at
+/// every width, SIMD level and query. Before the traversal refused them, a NaN slab distance
+/// made empty slots look hit and the loop ran off its stack (a segmentation fault).
+#[test]
+fn non_finite_rays_hit_nothing_and_stay_memory_safe() {
+    let tris = random_soup(5_000, 1.0, &mut Rng::new(21));
+    let boxes = triangle_boxes(&tris);
+    let bvh = Builder::PHR_HQ.build(&boxes);
+    let (nan, inf) = (f32::NAN, f32::INFINITY);
+    let centre = bvh.root_bounds().center();
+    let mut rays = Vec::new();
+    for bad in [nan, inf, -inf] {
+        for axis in 0..3 {
+            let mut o = centre - Vec3::Z * 3.0;
+            o[axis] = bad;
+            rays.push(Ray::new(o, Vec3::Z));
+            let mut d = Vec3::new(0.1, 0.2, 1.0);
+            d[axis] = bad;
+            rays.push(Ray::new(centre - Vec3::Z * 3.0, d));
+        }
+        rays.push(Ray::new(Vec3::splat(bad), Vec3::splat(bad)));
+    }
+    // A hand-made inverse direction that disagrees with the direction.
+    let mut r = Ray::new(centre - Vec3::Z * 3.0, Vec3::Z);
+    r.inv_dir = Vec3::new(nan, 0.0, inf);
+    rays.push(r);
+    let finite_nan_interval = Ray::with_interval(centre - Vec3::Z * 3.0, Vec3::Z, nan, nan);
+    fn run<const N: usize>(bvh: &Bvh, tris: &[[Vec3; 3]], rays: &[Ray], extra: &Ray)
+    where
+        Lanes<N>: Width<N>,
+    {
+        let mut wide = WideBvh::<N>::from_bvh(bvh);
+        let mut packed = PackedTriangles::new(&wide.prim_indices, tris);
+        for level in SimdLevel::supported() {
+            wide.set_simd(level);
+            packed.set_simd(level);
+            for ray in rays.iter().chain([extra]) {
+                let what = format!("wide-{N} {}, ray {ray:?}", level.name());
+                assert_eq!(wide.closest_triangle(&packed, ray).map(|(p, _)| p), None, "{what}");
+                assert!(!wide.any_triangle(&packed, ray), "{what}");
+                assert!(!wide.closest_hit(&mut ray.clone(), |_, _| true), "{what}");
+                assert!(!wide.any_hit(ray, |_, _| true), "{what}");
+            }
+        }
+    }
+    run::<4>(&bvh, &tris, &rays, &finite_nan_interval);
+    run::<8>(&bvh, &tris, &rays, &finite_nan_interval);
+    // The binary reference agrees.
+    for ray in &rays {
+        assert_eq!(bvh_hit(&bvh, &tris, ray), None, "binary, ray {ray:?}");
+    }
+}

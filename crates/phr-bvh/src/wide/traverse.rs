@@ -99,7 +99,12 @@ where
     P: Fn(u32),
 {
     let nodes = &bvh.nodes;
-    if nodes.is_empty() {
+    // A ray with a non-finite origin or direction hits nothing, and must not be traversed:
+    // through `inf - inf` or `inf * 0` its slab distances turn NaN, which can make an empty
+    // slot (an inverted ±inf box whose child is 0) look hit, and the loop would push the root
+    // again and again, past the end of the stack. A finite ray never hits an empty slot, so
+    // every pushed entry is a real child and the stack bound holds. One test per ray.
+    if nodes.is_empty() || !(ray.origin.is_finite() && ray.dir.is_finite() && ray.inv_dir.is_finite()) {
         return false;
     }
     let mut inline: [MaybeUninit<Entry>; INLINE_STACK] = [const { MaybeUninit::uninit() }; INLINE_STACK];
@@ -117,8 +122,9 @@ where
     let mut cur = Entry { child: 0, count: 0, t: 0.0 };
     loop {
         if cur.count == 0 {
+            debug_assert!((cur.child as usize) < nodes.len(), "wide traversal: node index out of range");
             // SAFETY: child indices written by the collapse are in range (validated by
-            // `WideBvh::validate` in the tests).
+            // `WideBvh::validate` in the tests), and only used slots are visited (see above).
             let node = unsafe { nodes.get_unchecked(cur.child as usize) };
             // The child references sit after the boxes, in a line the box test does not read:
             // ask for it now, so that its load overlaps the box test instead of following it.
@@ -144,6 +150,7 @@ where
                     } else {
                         prefetch(node.child[far]);
                     }
+                    debug_assert!(sp <= bvh.stack_bound, "wide traversal: stack bound exceeded");
                     // SAFETY: as for the general case below.
                     unsafe { stack.add(sp).write(Entry { child: node.child[far], count: node.count[far], t: t[far] }) };
                     sp += 1;
@@ -178,6 +185,7 @@ where
                     // SAFETY: the stack holds `stack_bound + 1` entries and the collapse
                     // bounds the entries on the stack by `stack_bound` (see
                     // `collapse::collapse`).
+                    debug_assert!(sp <= bvh.stack_bound, "wide traversal: stack bound exceeded");
                     unsafe { stack.add(sp).write(Entry { child: node.child[i], count: node.count[i], t: t[i] }) };
                     sp += 1;
                 }
