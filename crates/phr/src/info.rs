@@ -53,7 +53,12 @@ pub fn run(args: &InfoArgs) -> Result<()> {
         sah_cost(geometry.bvh(), SahConstants::UNIT),
         sah_cost(geometry.bvh(), SahConstants::THESIS)
     );
-    let check = validate(geometry.bvh(), &geometry.boxes, builder.max_leaf_size());
-    println!("invariants  {}", check.map_or_else(|e| format!("BROKEN: {e}"), |()| "ok".into()));
+    match validate(geometry.bvh(), &geometry.boxes, builder.max_leaf_size()) {
+        Ok(()) => println!("invariants  ok"),
+        Err(e) => {
+            println!("invariants  BROKEN: {e}");
+            anyhow::bail!("the {} tree breaks its invariants: {e}", builder);
+        }
+    }
     Ok(())
 }

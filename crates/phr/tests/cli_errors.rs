@@ -171,6 +171,62 @@ fn obj_without_faces() {
     assert_names(&line, &["empty.obj", "no triangles"]);
 }
 
+/// A 60×60 grid of valid triangles spanning `extent` units: big enough for a real tree.
+fn grid_obj(extent: f64) -> String {
+    let n = 60;
+    let mut obj = String::new();
+    for i in 0..n {
+        for j in 0..n {
+            let (x, y) = (i as f64 * extent / n as f64, j as f64 * extent / n as f64);
+            obj += &format!("v {x:e} {y:e} {:e}\n", 0.1 * extent * (0.3 * i as f64 + 0.2 * j as f64).sin());
+        }
+    }
+    for i in 0..n - 1 {
+        for j in 0..n - 1 {
+            let a = i * n + j + 1;
+            obj += &format!("f {a} {} {}\nf {} {} {}\n", a + 1, a + n, a + 1, a + n + 1, a + n);
+        }
+    }
+    obj
+}
+
+/// Meshes far beyond f32's comfortable range used to crash the wide traversal (the framing
+/// camera's squared extent overflowed, its rays were infinite): now one clear error.
+#[test]
+fn coordinates_beyond_float_range_are_an_error() {
+    for (test, extent) in [("far-1e19", 1e19), ("far-1e30", 1e30), ("far-1e37", 1e37)] {
+        let obj = grid_obj(extent);
+        let line = expect_render_failure(test, &[("far.obj", obj.as_bytes())], "far.obj", &["--spp", "1"]);
+        assert_names(&line, &["far.obj", "coordinates beyond"]);
+    }
+    // A scene file's camera far out, and a transform that scales a valid mesh out of range.
+    let near = grid_obj(10.0);
+    let camera = r#"{ "camera": { "position": [0, 0, 1e38], "look_at": [0, 0, 0], "up": [0, 1, 0], "vfov": 40 },
+  "materials": { "white": { "type": "lambertian", "albedo": 0.7 } },
+  "objects": [ { "type": "mesh", "file": "near.obj", "material": "white" } ] }"#;
+    let line = expect_render_failure(
+        "far-camera",
+        &[("near.obj", near.as_bytes()), ("scene.json", camera.as_bytes())],
+        "scene.json",
+        &["--spp", "1"],
+    );
+    assert_names(&line, &["scene.json", "camera position"]);
+    let scaled = r#"{ "materials": { "white": { "type": "lambertian", "albedo": 0.7 } },
+  "objects": [ { "type": "mesh", "file": "near.obj", "material": "white", "transform": { "scale": 1e30 } } ] }"#;
+    let line = expect_render_failure(
+        "far-scaled",
+        &[("near.obj", near.as_bytes()), ("scene.json", scaled.as_bytes())],
+        "scene.json",
+        &["--spp", "1"],
+    );
+    assert_names(&line, &["scene.json", "coordinates beyond"]);
+    // The same mesh at a sane size renders.
+    let dir = TempDir::new("near-grid");
+    dir.write("near.obj", &near);
+    let out = phr(&dir.0, &["render", "near.obj", "--out", "out.png", "--width", "16", "--height", "16", "--spp", "1"]);
+    assert_eq!(out.code, Some(0), "{}", out.stderr);
+}
+
 #[test]
 fn json_unknown_material_name() {
     let json = r#"{

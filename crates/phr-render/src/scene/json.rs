@@ -346,6 +346,7 @@ impl SceneBuilder<'_> {
             let auto = self.scene.framing_camera();
             self.scene.views.push(("auto".into(), auto));
         }
+        self.scene.check_range(self.path)?;
         Ok(self.scene)
     }
 

@@ -150,7 +150,10 @@ impl Scene {
             return CameraDesc::default();
         }
         let centre = b.center();
-        let radius = 0.5 * b.extent().length().max(1e-6);
+        // |extent| without squaring coordinates, which overflows f32 beyond about 1e19.
+        let extent = b.extent();
+        let scale = extent.max_element().max(1e-6);
+        let radius = 0.5 * scale * (extent / scale).length();
         let vfov: f32 = 40.0;
         let distance = radius / (vfov.to_radians() * 0.5).sin() * 1.05;
         let dir = Vec3::new(0.35, 0.3, 1.0).normalize();
@@ -158,9 +161,48 @@ impl Scene {
     }
 }
 
+/// The largest coordinate magnitude a scene may have, for geometry and cameras alike.
+///
+/// The renderer works in f32: hit distances, squared lengths (sphere tests, normalising a
+/// direction) and the offsets of secondary rays must stay finite. With coordinates up to
+/// 1e18, squared distances stay below 1e37, short of f32's 3.4e38; beyond it, rays turn
+/// into infinities and NaNs, and a scene that far out is a units mistake anyway.
+pub const MAX_COORDINATE: f32 = 1.0e18;
+
+impl Scene {
+    /// Fails, naming `path`, if any geometry or view lies outside [`MAX_COORDINATE`] (or is
+    /// not finite): what every scene passes before it reaches the renderer.
+    pub fn check_range(&self, path: &std::path::Path) -> Result<(), crate::error::LoadError> {
+        let within = |p: Vec3| p.abs().max_element() <= MAX_COORDINATE;
+        let show = |p: Vec3| format!("({:.3e}, {:.3e}, {:.3e})", p.x, p.y, p.z);
+        let b = self.bounds();
+        if !(b.is_empty() || within(b.min) && within(b.max)) {
+            let message = format!(
+                "the geometry spans {} to {}: coordinates beyond ±{MAX_COORDINATE:e} (or not finite) cannot be rendered in 32-bit floats; scale the scene down",
+                show(b.min),
+                show(b.max)
+            );
+            return Err(crate::error::LoadError::new(path, message));
+        }
+        for (name, v) in &self.views {
+            if !(within(v.position) && within(v.look_at) && v.up.is_finite()) {
+                let message = format!(
+                    "view '{name}': camera position {} / look_at {} / up {} beyond ±{MAX_COORDINATE:e} or not finite",
+                    show(v.position),
+                    show(v.look_at),
+                    show(v.up)
+                );
+                return Err(crate::error::LoadError::new(path, message));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Opens what the user named: a scene file (`.json`) or a mesh file (`.obj`, `.ply`,
 /// `.gltf`, `.glb`, optionally `.gz`), which becomes a scene with the file's own materials
-/// (full MTL mapping), the RTIOW gradient sky and a camera framing the mesh.
+/// (full MTL mapping), the RTIOW gradient sky and a camera framing the mesh. Either way the
+/// scene passes [`Scene::check_range`].
 pub fn load_scene(path: &std::path::Path) -> Result<Scene, crate::error::LoadError> {
     let name = path.to_string_lossy().to_ascii_lowercase();
     if name.ends_with(".json") {
@@ -192,5 +234,6 @@ pub fn load_scene(path: &std::path::Path) -> Result<Scene, crate::error::LoadErr
     });
     let auto = scene.framing_camera();
     scene.views.insert(0, ("auto".into(), auto));
+    scene.check_range(path)?;
     Ok(scene)
 }
