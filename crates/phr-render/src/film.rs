@@ -16,7 +16,7 @@ pub struct Film {
 
 impl Film {
     pub fn new(width: u32, height: u32) -> Self {
-        let n = (width * height) as usize;
+        let n = width as usize * height as usize;
         Self { width, height, sum: vec![[0.0; 3]; n], sum_sq: vec![[0.0; 3]; n], samples: 0 }
     }
 

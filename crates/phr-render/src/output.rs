@@ -21,7 +21,7 @@ pub fn srgb_encode(x: f32) -> f32 {
 /// Writes `pixels` (linear radiance, row-major from the top left) in the format named by the
 /// extension of `path`: `.png`, `.exr` or `.pfm`.
 pub fn write_image(path: &Path, width: u32, height: u32, pixels: &[Vec3]) -> io::Result<()> {
-    assert_eq!(pixels.len(), (width * height) as usize);
+    assert_eq!(pixels.len(), width as usize * height as usize);
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     match ext.as_str() {
         "png" => {

@@ -13,6 +13,7 @@ use phr_render::integrator::PathTracer;
 use phr_render::lights::LightSet;
 use phr_render::output::{write_heatmap, write_image};
 use phr_render::render::Renderer;
+use phr_render::scene::RenderSettings;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -116,13 +117,14 @@ pub fn run(args: &RenderArgs) -> Result<()> {
             scene.view_names().join(", ")
         )
     })?;
-    let width = args.width.unwrap_or(scene.settings.width);
-    let height = args.height.unwrap_or(scene.settings.height);
-    let spp = args.spp.unwrap_or(scene.settings.spp);
-    let max_depth = args.max_depth.unwrap_or(scene.settings.max_depth);
-    if width == 0 || height == 0 || spp == 0 || max_depth == 0 {
-        bail!("width, height, spp and max-depth must be at least 1");
-    }
+    let settings = RenderSettings {
+        width: args.width.unwrap_or(scene.settings.width),
+        height: args.height.unwrap_or(scene.settings.height),
+        spp: args.spp.unwrap_or(scene.settings.spp),
+        max_depth: args.max_depth.unwrap_or(scene.settings.max_depth),
+    };
+    settings.check().map_err(anyhow::Error::msg)?;
+    let RenderSettings { width, height, spp, max_depth } = settings;
 
     let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;
     let mut geometry = Geometry::new(&scene);

@@ -139,6 +139,9 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     if args.alphas.is_empty() || args.deltas.is_empty() || args.budget < 3 {
         bail!("need at least one α, one δ and a budget of 3");
     }
+    let size =
+        phr_render::scene::RenderSettings { width: args.width, height: args.height, spp: 1, max_depth: args.max_depth };
+    size.check().map_err(anyhow::Error::msg)?;
     let scene = open_scene(&args.scene)?;
     let view = scene.view(args.view.as_deref()).with_context(|| format!("no view {:?}", args.view))?;
     let camera = Camera::new(&view, args.width, args.height);

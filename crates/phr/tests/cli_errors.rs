@@ -227,6 +227,31 @@ fn coordinates_beyond_float_range_are_an_error() {
     assert_eq!(out.code, Some(0), "{}", out.stderr);
 }
 
+/// Sizes and depths that used to wrap `width * height` in u32 (65536² rendered for 30 s and
+/// aborted on allocation) or loop for ever (a depth of 2³²−1): one clear error, at once.
+#[test]
+fn image_size_and_depth_limits() {
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let cases: [(&str, &[&str], &[&str]); 4] = [
+        ("size-wrap", &["--width", "65536", "--height", "65536"], &["65536x65536", "too large"]),
+        ("size-empty", &["--width", "0"], &["empty"]),
+        ("depth-huge", &["--max-depth", "4294967295"], &["max_depth", "1024"]),
+        ("spp-zero", &["--spp", "0"], &["spp"]),
+    ];
+    for (test, extra, needles) in cases {
+        let line = expect_render_failure(test, &[("tri.obj", obj.as_bytes())], "tri.obj", extra);
+        assert_names(&line, needles);
+    }
+    for (key, needle) in [(r#""spp": 0"#, "spp"), (r#""max_depth": 0"#, "max_depth"), (r#""width": 100000"#, "too large")] {
+        let json = format!(
+            r#"{{ {key}, "materials": {{ "w": {{ "type": "lambertian", "albedo": 0.5 }} }},
+  "objects": [ {{ "type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "w" }} ] }}"#
+        );
+        let line = expect_render_failure("json-settings", &[("s.json", json.as_bytes())], "s.json", &[]);
+        assert_names(&line, &["s.json", needle]);
+    }
+}
+
 #[test]
 fn json_unknown_material_name() {
     let json = r#"{

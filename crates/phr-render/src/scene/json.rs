@@ -305,16 +305,10 @@ impl SceneBuilder<'_> {
     }
 
     fn build(mut self, file: SceneFile) -> Result<Scene, LoadError> {
-        let [w, h] = file.resolution.unwrap_or([file.width.unwrap_or(256), file.height.unwrap_or(256)]);
-        if w == 0 || h == 0 {
-            return Err(self.err(format!("image size {w}x{h} is empty")));
-        }
-        self.scene.settings = RenderSettings {
-            width: w,
-            height: h,
-            spp: file.spp.unwrap_or(64).max(1),
-            max_depth: file.max_depth.unwrap_or(50).max(1),
-        };
+        let [width, height] = file.resolution.unwrap_or([file.width.unwrap_or(256), file.height.unwrap_or(256)]);
+        self.scene.settings =
+            RenderSettings { width, height, spp: file.spp.unwrap_or(64), max_depth: file.max_depth.unwrap_or(50) };
+        self.scene.settings.check().map_err(|e| self.err(e))?;
         self.scene.background = match file.background {
             None => Background::Constant(Vec3::ZERO),
             Some(BackgroundFile::Color(c)) => Background::Constant(c.into()),

@@ -71,6 +71,40 @@ impl Default for RenderSettings {
     }
 }
 
+impl RenderSettings {
+    /// The largest image side, and the most pixels: the film keeps two f64 triples a pixel
+    /// (48 bytes), so 2²⁶ pixels (8192², or 16384 × 4096) take 3 GiB, which is where a render
+    /// stops being a mistake worth a warning and starts exhausting memory.
+    pub const MAX_SIDE: u32 = 16384;
+    pub const MAX_PIXELS: u64 = 1 << 26;
+    /// The most ray segments a path may have: far beyond any useful estimate, but finite, so
+    /// that a camera inside a mirror cannot loop for ever.
+    pub const MAX_DEPTH: u32 = 1024;
+
+    /// Says what is wrong with these settings, if anything: every size, sample count and depth
+    /// is at least 1 and within the limits above.
+    pub fn check(&self) -> Result<(), String> {
+        let (w, h) = (self.width, self.height);
+        if w == 0 || h == 0 {
+            return Err(format!("image size {w}x{h} is empty"));
+        }
+        if w > Self::MAX_SIDE || h > Self::MAX_SIDE || u64::from(w) * u64::from(h) > Self::MAX_PIXELS {
+            return Err(format!(
+                "image size {w}x{h} is too large (at most {} pixels a side and {} pixels in all)",
+                Self::MAX_SIDE,
+                Self::MAX_PIXELS
+            ));
+        }
+        if self.spp == 0 {
+            return Err("spp must be at least 1".into());
+        }
+        if !(1..=Self::MAX_DEPTH).contains(&self.max_depth) {
+            return Err(format!("max_depth {} is outside 1..={}", self.max_depth, Self::MAX_DEPTH));
+        }
+        Ok(())
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct Scene {
     pub materials: Vec<Material>,

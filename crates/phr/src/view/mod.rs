@@ -11,6 +11,7 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use phr_bvh::Builder;
 use phr_render::pipeline::{FramePipeline, PipelineSettings, ViewMode};
+use phr_render::scene::RenderSettings;
 use std::path::PathBuf;
 
 #[derive(Args)]
@@ -121,12 +122,14 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
         .view(args.view.as_deref())
         .with_context(|| format!("no view {:?} (the scene has: {})", args.view, scene.view_names().join(", ")))?;
     let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;
-    anyhow::ensure!(args.width > 0 && args.height > 0, "image size {}x{} is empty", args.width, args.height);
+    let max_depth = args.max_depth.unwrap_or(scene.settings.max_depth.min(8));
+    let size = RenderSettings { width: args.width, height: args.height, spp: 1, max_depth };
+    size.check().map_err(anyhow::Error::msg)?;
     let settings = PipelineSettings {
         builder,
         width: args.width,
         height: args.height,
-        max_depth: args.max_depth.unwrap_or(scene.settings.max_depth.min(8)).max(1),
+        max_depth,
         mode: args.mode.into(),
         explicit_lights: args.light_sampling == LightSampling::Explicit,
     };
