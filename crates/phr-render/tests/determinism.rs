@@ -1,7 +1,7 @@
-//! The same seed gives the same image for any thread count (README), bit for bit: each pixel's
-//! random numbers depend only on (seed, frame, pixel), and closest-hit ties do not depend on
-//! the tree, so every builder and branching factor gives the same image too. A different seed
-//! gives a different image.
+//! The same seed gives the same image for any thread count (README), bit for bit, with implicit
+//! lights and with explicit light sampling: each pixel's random numbers depend only on (seed,
+//! frame, pixel), and closest-hit ties do not depend on the tree, so every builder and
+//! branching factor gives the same image too. A different seed gives a different image.
 
 use glam::Vec3;
 use phr_bvh::Builder;
@@ -9,6 +9,7 @@ use phr_render::camera::Camera;
 use phr_render::film::Film;
 use phr_render::geometry::Geometry;
 use phr_render::integrator::PathTracer;
+use phr_render::lights::LightSet;
 use phr_render::render::Renderer;
 use phr_render::scene::builtin;
 use phr_render::Scene;
@@ -21,14 +22,17 @@ const MAX_DEPTH: u32 = 8;
 /// Builds and renders `scene` as `phr render` does, on a pool of `threads` threads; returns the
 /// film mean and the number of rays traced.
 fn render(scene: &Scene, threads: usize, seed: u64) -> (Vec<Vec3>, u64) {
-    render_with(scene, threads, seed, Builder::default())
+    render_with(scene, threads, seed, Builder::default(), false)
 }
 
-fn render_with(scene: &Scene, threads: usize, seed: u64, builder: Builder) -> (Vec<Vec3>, u64) {
+/// [`render`] with a builder, and with explicit light sampling if `nee`.
+fn render_with(scene: &Scene, threads: usize, seed: u64, builder: Builder, nee: bool) -> (Vec<Vec3>, u64) {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     pool.install(|| {
         let mut geometry = Geometry::new(scene);
         geometry.build(|boxes| builder.build(boxes));
+        let lights = nee.then(|| LightSet::new(&geometry, &scene.materials));
+        assert!(lights.as_ref().is_none_or(|l| !l.is_empty()), "no emissive triangles to sample");
         let view = scene.view(None).expect("default view");
         let renderer = Renderer {
             tracer: PathTracer {
@@ -36,7 +40,7 @@ fn render_with(scene: &Scene, threads: usize, seed: u64, builder: Builder) -> (V
                 materials: &scene.materials,
                 background: &scene.background,
                 max_depth: MAX_DEPTH,
-                lights: None,
+                lights: lights.as_ref(),
             },
             camera: Camera::new(&view, WIDTH, HEIGHT),
             width: WIDTH,
@@ -87,7 +91,24 @@ fn every_builder_gives_the_same_image() {
         ["phr-fast", "phr-hq", "phr:0.4,7", "sweep-sah", "binned-sah"].iter().map(|s| s.parse().unwrap()).collect();
     builders.extend([4, 8, 16].map(|k| Builder::PHR_HQ.with_branching(k).unwrap()));
     for builder in builders {
-        let (image, _) = render_with(&scene, 2, 3, builder);
+        let (image, _) = render_with(&scene, 2, 3, builder, false);
         assert!(bits(&image) == bits(&reference), "{builder} renders a different image than the LBVH");
+    }
+}
+
+#[test]
+fn explicit_light_sampling_is_deterministic_too() {
+    let scene = builtin::cornell_knot();
+    let (one, rays_one) = render_with(&scene, 1, 7, Builder::default(), true);
+    let (implicit, rays_implicit) = render(&scene, 1, 7);
+    // Not vacuous: light sampling traces shadow rays and lights more pixels at 4 spp.
+    assert!(rays_one > rays_implicit, "{rays_one} rays with light sampling, {rays_implicit} without");
+    let lit = |image: &[Vec3]| image.iter().filter(|p| p.max_element() > 0.0).count();
+    assert!(lit(&one) > lit(&implicit), "light sampling lit {} pixels, implicit {}", lit(&one), lit(&implicit));
+    for (threads, builder) in [(2, Builder::default()), (3, Builder::PHR_HQ.with_branching(8).unwrap())] {
+        let (image, rays) = render_with(&scene, threads, 7, builder, true);
+        assert_eq!(rays, rays_one, "{threads} threads, {builder}: different number of rays");
+        let differing = bits(&one).iter().zip(&bits(&image)).filter(|(a, b)| a != b).count();
+        assert_eq!(differing, 0, "{threads} threads, {builder}: {differing} pixels differ");
     }
 }
