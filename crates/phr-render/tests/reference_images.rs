@@ -1,9 +1,15 @@
-//! Our renders against the independent Mitsuba 3 references in `shared/reference`, judged by
-//! the team's noise-aware comparison tool (`compare_images.py --check`), which we did not write.
+//! Our renders against independent Mitsuba 3 references, judged by the team's noise-aware
+//! comparison tool (`compare_images.py --check`), which we did not write: the four of
+//! `shared/reference`, and `tests/references/lights_mixed` (rendered with the same tool,
+//! `render_reference.py --variant llvm_ad_rgb --integrator rtiow --passes 64`), where a
+//! triangle light that light sampling samples meets an emissive sphere and the sky that it
+//! does not, and a glass sphere.
 //!
-//! The CI variant renders each scene with 256 samples per pixel; `--ignored` runs the
-//! README's recommended 1024. Both need Python 3 with numpy and OpenEXR (`.ci/run` installs
-//! them).
+//! Renders with the thesis's estimator are judged with `--test-spp` (the reference's own noise
+//! per sample); renders with explicit light sampling, whose noise is lower, with `--test-var`,
+//! the variance of their own mean, as the tool's README asks. The CI variant renders each
+//! scene with 256 samples per pixel; `--ignored` runs the README's recommended 1024. Both need
+//! Python 3 with numpy and OpenEXR (`.ci/run` installs them).
 
 use phr_bvh::Builder;
 use phr_render::camera::Camera;
@@ -21,19 +27,38 @@ fn shared() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared"))
 }
 
-/// Renders `name` at its own size and depth with `spp` samples, writes the linear mean as PFM
-/// and runs the comparison; panics with the tool's output on failure.
-fn check_against_reference(name: &str, spp: u32) {
-    check_with(name, spp, false);
+/// A scene and its Mitsuba reference image (`NAME.exr`, with `NAME_var.exr` and `NAME.json`
+/// next to it, as `render_reference.py` writes them).
+struct Reference {
+    name: &'static str,
+    scene: PathBuf,
+    image: PathBuf,
 }
 
-/// [`check_against_reference`], optionally with explicit light sampling (which must converge
-/// to the same image).
-fn check_with(name: &str, spp: u32, nee: bool) {
-    let reference = shared().join("reference");
-    let scene_file = reference.join("scenes").join(format!("{name}.json"));
+/// One of `shared/reference`.
+fn shared_reference(name: &'static str) -> Reference {
+    let dir = shared().join("reference");
+    Reference { name, scene: dir.join(format!("scenes/{name}.json")), image: dir.join(format!("images/{name}.exr")) }
+}
+
+/// One of this crate's `tests/references`.
+fn own_reference(name: &'static str) -> Reference {
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/references"));
+    Reference { name, scene: dir.join(format!("{name}.json")), image: dir.join(format!("{name}_ref.exr")) }
+}
+
+/// Renders `name` at its own size and depth with `spp` samples, writes the linear mean as PFM
+/// and runs the comparison; panics with the tool's output on failure.
+fn check_against_reference(name: &'static str, spp: u32) {
+    check_with(&shared_reference(name), spp, false);
+}
+
+/// Renders the reference's scene, optionally with explicit light sampling (which must converge
+/// to the same image), and compares.
+fn check_with(reference: &Reference, spp: u32, nee: bool) {
+    let (name, scene_file) = (reference.name, &reference.scene);
     assert!(scene_file.is_file(), "missing {} (shared/ must sit next to the repository)", scene_file.display());
-    let scene = load_scene_file(&scene_file).unwrap();
+    let scene = load_scene_file(scene_file).unwrap();
     let mut geometry = Geometry::new(&scene);
     geometry.build(|b| Builder::default().build(b));
     let lights = nee.then(|| LightSet::new(&geometry, &scene.materials));
@@ -58,16 +83,20 @@ fn check_with(name: &str, spp: u32, nee: bool) {
     for frame in 0..spp {
         film.add_frame(&renderer.render_frame(frame).0);
     }
-    let out = std::env::temp_dir().join(format!("phr-ref-{name}-{}.pfm", std::process::id()));
+    let out = std::env::temp_dir().join(format!("phr-ref-{name}-{nee}-{}.pfm", std::process::id()));
+    let variance = out.with_extension("var.pfm");
     write_image(&out, w, h, &film.mean()).unwrap();
-    let result = Command::new("python3")
-        .arg(reference.join("tools/compare_images.py"))
-        .arg(&out)
-        .arg(reference.join("images").join(format!("{name}.exr")))
-        .args(["--test-spp", &spp.to_string(), "--check"])
-        .output()
-        .expect("python3 must be installed to compare with the references");
+    let mut compare = Command::new("python3");
+    compare.arg(shared().join("reference/tools/compare_images.py")).arg(&out).arg(&reference.image).arg("--check");
+    if nee {
+        write_image(&variance, w, h, &film.variance_of_mean()).unwrap();
+        compare.arg("--test-var").arg(&variance);
+    } else {
+        compare.args(["--test-spp", &spp.to_string()]);
+    }
+    let result = compare.output().expect("python3 must be installed to compare with the references");
     let _ = std::fs::remove_file(&out);
+    let _ = std::fs::remove_file(&variance);
     let text = format!("{}{}", String::from_utf8_lossy(&result.stdout), String::from_utf8_lossy(&result.stderr));
     println!("{name}, {spp} spp, nee {nee}:\n{text}");
     assert!(result.status.success() && text.contains("PASS"), "{name} does not match the reference:\n{text}");
@@ -80,12 +109,23 @@ fn cornell_obj_matches_reference() {
 
 #[test]
 fn cornell_obj_with_explicit_light_sampling_matches_reference() {
-    check_with("cornell_obj", 64, true);
+    check_with(&shared_reference("cornell_obj"), 256, true);
 }
 
 #[test]
 fn cornell_glass_mirror_with_explicit_light_sampling_matches_reference() {
-    check_with("cornell_glass_mirror", 64, true);
+    check_with(&shared_reference("cornell_glass_mirror"), 256, true);
+}
+
+/// Light sampling must leave the emissive sphere and the sky to the paths that hit them.
+#[test]
+fn lights_mixed_with_explicit_light_sampling_matches_reference() {
+    check_with(&own_reference("lights_mixed"), 256, true);
+}
+
+#[test]
+fn lights_mixed_matches_reference() {
+    check_with(&own_reference("lights_mixed"), 256, false);
 }
 
 #[test]
@@ -108,5 +148,8 @@ fn bunny_sky_matches_reference() {
 fn all_references_at_1024_spp() {
     for name in ["cornell_obj", "cornell_glass_mirror", "spheres_sky", "bunny_sky"] {
         check_against_reference(name, 1024);
+    }
+    for nee in [false, true] {
+        check_with(&own_reference("lights_mixed"), 1024, nee);
     }
 }
