@@ -134,6 +134,7 @@ fn check_scene(file: &Path, builder: Builder, random: usize, brute_sample: usize
     let tris = geometry.triangles.clone();
     let boxes = geometry.boxes.clone();
     let bvh = geometry.bvh().clone();
+    phr_bvh::validate(&bvh, &boxes, builder.max_leaf_size()).unwrap_or_else(|e| panic!("{name}, {builder}: {e}"));
 
     // Rays: random, primary (48² of the framing view), one diffuse bounce per primary hit.
     let mut rng = Rng::new(seed);
@@ -241,4 +242,46 @@ fn wide_matches_reference_on_conference() {
 #[test]
 fn wide_matches_reference_on_dragon() {
     check("dragon/dragon_vrip.ply", Builder::default(), 2000, 60, 5);
+}
+
+/// PHR's multi-way trees (k = 8 and 16) on real meshes: the collapse regroups nodes of up to
+/// 16 children into 4- and 8-wide ones.
+#[test]
+fn wide_matches_reference_on_bunny_from_8_ary_phr() {
+    check("bunny/bun_zipper.ply", Builder::PHR_HQ.with_branching(8).unwrap(), 1000, 150, 6);
+}
+
+#[test]
+fn wide_matches_reference_on_sibenik_from_16_ary_phr() {
+    check("sibenik/sibenik.obj", Builder::PHR_FAST.with_branching(16).unwrap(), 1000, 150, 7);
+}
+
+/// The wide collapse and the triangle packing run in parallel: their output (node layout,
+/// leaf order, packed blocks) must not depend on the thread count, or images and benchmark
+/// numbers would change with `--threads`.
+#[test]
+fn wide_collapse_layout_does_not_depend_on_thread_count() {
+    let file = scenes().join("sponza/sponza.obj");
+    assert!(file.is_file(), "missing {} (shared/ must sit next to the repository)", file.display());
+    let scene = load_scene(&file).unwrap();
+    let geometry = Geometry::new(&scene);
+    let tris = &geometry.triangles;
+    for builder in [Builder::PHR_HQ, Builder::PHR_HQ.with_branching(8).unwrap()] {
+        let bvh = builder.build(&geometry.boxes);
+        let collapse = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let wide = WideBvh::<8>::from_bvh(&bvh);
+                let packed = PackedTriangles::new(&wide.prim_indices, tris);
+                (wide, packed)
+            })
+        };
+        let (one, one_packed) = collapse(1);
+        for threads in [2, 3] {
+            let (other, other_packed) = collapse(threads);
+            assert!(one.nodes == other.nodes, "{builder}: wide nodes differ with {threads} threads");
+            assert_eq!(one.prim_indices, other.prim_indices, "{builder}: leaf order differs with {threads} threads");
+            assert!(one_packed.blocks == other_packed.blocks, "{builder}: packed blocks differ with {threads} threads");
+        }
+    }
 }
