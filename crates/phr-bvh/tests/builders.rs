@@ -82,7 +82,9 @@ fn phr_quality_approaches_the_full_sweep() {
     let lbvh = cost(Builder::default());
     assert!(sweep <= hq * 1.001 && hq <= fast * 1.02, "sweep {sweep}, hq {hq}, fast {fast}");
     assert!(hq < lbvh, "PHR-HQ ({hq}) should beat the LBVH ({lbvh})");
-    assert!(hq <= sweep * 1.10, "PHR-HQ {hq} vs sweep {sweep}");
+    // Measured on this soup: PHR-HQ 1.0000 × the sweep, PHR-Fast 1.0045 ×, the LBVH 1.21 ×.
+    assert!(hq <= sweep * 1.01, "PHR-HQ {hq} vs sweep {sweep}");
+    assert!(fast <= sweep * 1.02, "PHR-Fast {fast} vs sweep {sweep}");
 }
 
 #[test]
