@@ -242,7 +242,9 @@ fn image_size_and_depth_limits() {
         let line = expect_render_failure(test, &[("tri.obj", obj.as_bytes())], "tri.obj", extra);
         assert_names(&line, needles);
     }
-    for (key, needle) in [(r#""spp": 0"#, "spp"), (r#""max_depth": 0"#, "max_depth"), (r#""width": 100000"#, "too large")] {
+    for (key, needle) in
+        [(r#""spp": 0"#, "spp"), (r#""max_depth": 0"#, "max_depth"), (r#""width": 100000"#, "too large")]
+    {
         let json = format!(
             r#"{{ {key}, "materials": {{ "w": {{ "type": "lambertian", "albedo": 0.5 }} }},
   "objects": [ {{ "type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "w" }} ] }}"#
