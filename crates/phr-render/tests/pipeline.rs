@@ -1,0 +1,180 @@
+//! The per-frame pipeline of dynamic scenes (pose → refit → rebuild → collapse → render →
+//! accumulate), checked against things computed afresh from the posed scene: after every
+//! animated frame the primitive boxes are those of the moved triangles, the tree is valid over
+//! them and its closest hits equal brute force, the film holds exactly that frame's render
+//! (nothing of the previous pose), and light sampling samples the lights where they are now.
+//! A paused pipeline keeps its tree and accumulates.
+
+use glam::Vec3;
+use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
+use phr_bvh::{validate, Builder, Ray};
+use phr_render::camera::Camera;
+use phr_render::integrator::PathTracer;
+use phr_render::lights::LightSet;
+use phr_render::pipeline::{FramePipeline, PipelineSettings, ViewMode};
+use phr_render::render::Renderer;
+use phr_render::scene::json::parse_scene;
+use std::path::Path;
+
+/// A floor, a sphere, and a quad light that moves sideways over them; the floor waves, and so
+/// does the light, so that its two triangles' areas (and light sampling's choice between
+/// them) change with time.
+const SCENE: &str = r#"{
+  "background": [0.05, 0.05, 0.05],
+  "camera": { "position": [0, 2, 5], "look_at": [0, 0.5, 0], "vfov": 50 },
+  "materials": {
+    "white": { "type": "lambertian", "albedo": 0.7 },
+    "lamp": { "type": "emissive", "emit": [8, 8, 8], "two_sided": true }
+  },
+  "objects": [
+    { "type": "triangles", "material": "white",
+      "vertices": [[-3, 0, -3], [0, 0, -3], [3, 0, -3], [-3, 0, 0], [0, 0, 0], [3, 0, 0], [-3, 0, 3], [0, 0, 3], [3, 0, 3]],
+      "faces": [[0, 3, 1], [1, 3, 4], [1, 4, 2], [2, 4, 5], [3, 6, 4], [4, 6, 7], [4, 7, 5], [5, 7, 8]],
+      "animate": { "type": "wave", "amplitude": 0.1, "wavelength": 2.0, "period": 1.5, "direction": [1, 0, 0] } },
+    { "type": "sphere", "center": [0, 0.6, 0], "radius": 0.6, "material": "white" },
+    { "type": "quad", "Q": [-0.5, 2.5, -0.5], "u": [1, 0, 0], "v": [0, 0, 1], "material": "lamp",
+      "animate": [ { "type": "wave", "amplitude": 0.4, "wavelength": 3, "period": 2, "direction": [1, 0, 1] },
+                   { "type": "oscillate", "amplitude": [1.5, 0, 0], "period": 2 } ] }
+  ]
+}"#;
+
+const SIZE: u32 = 32;
+
+fn pipeline(builder: Builder, explicit_lights: bool) -> FramePipeline {
+    let scene = parse_scene(SCENE, Path::new("moving_light.json")).unwrap();
+    let camera = scene.view(None).unwrap();
+    let settings =
+        PipelineSettings { builder, width: SIZE, height: SIZE, max_depth: 4, mode: ViewMode::Colour, explicit_lights };
+    FramePipeline::new(scene, settings, camera)
+}
+
+fn rng_rays(bounds: phr_bvh::Aabb, n: usize, seed: u64) -> Vec<Ray> {
+    let mut s = seed | 1;
+    let mut f = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let (c, e) = (bounds.center(), bounds.extent());
+    (0..n)
+        .map(|_| {
+            let o = c + e * Vec3::new(f() - 0.5, f() - 0.5, f() - 0.5) * 2.0;
+            let target = bounds.min + e * Vec3::new(f(), f(), f());
+            Ray::new(o, (target - o).normalize_or(Vec3::Y))
+        })
+        .collect()
+}
+
+/// Closest hit over every triangle and sphere, lowest index on ties.
+fn brute_force(p: &FramePipeline, ray: &Ray) -> Option<(f32, u32)> {
+    let g = p.geometry();
+    let tris = g.triangles.iter().map(|t| intersect_triangle(ray, t[0], t[1], t[2]).map(|h| h.t));
+    let spheres = g.spheres.iter().map(|s| s.sphere.intersect(ray));
+    let mut best: Option<(f32, u32)> = None;
+    for (i, t) in tris.chain(spheres).enumerate() {
+        if let Some(t) = t {
+            if best.is_none_or(|(bt, _)| t < bt) {
+                best = Some((t, i as u32));
+            }
+        }
+    }
+    best
+}
+
+/// The pipeline's geometry is the posed scene's: fresh boxes, a valid tree, exact hits.
+fn check_geometry(p: &FramePipeline, builder: Builder, frame: usize) {
+    let g = p.geometry();
+    let what = format!("{builder}, frame {frame}");
+    for (i, t) in g.triangles.iter().enumerate() {
+        assert_eq!(g.boxes[i], triangle_bounds(t[0], t[1], t[2]), "{what}: stale box of triangle {i}");
+    }
+    validate(g.bvh(), &g.boxes, builder.max_leaf_size()).unwrap_or_else(|e| panic!("{what}: {e}"));
+    let bounds = g.boxes.iter().fold(phr_bvh::Aabb::EMPTY, |b, x| b.union(*x));
+    for (i, ray) in rng_rays(bounds, 300, frame as u64 + 1).iter().enumerate() {
+        let got = g.intersect(ray).map(|h| (h.t, h.prim));
+        assert_eq!(got, brute_force(p, ray), "{what}: ray {i}");
+    }
+}
+
+/// What a renderer made from scratch over the pipeline's current geometry renders for `frame`.
+fn fresh_render(p: &FramePipeline, frame: u32, lights: bool) -> Vec<Vec3> {
+    let g = p.geometry();
+    let materials = &p.scene().materials;
+    let light_set = lights.then(|| LightSet::new(g, materials));
+    let renderer = Renderer {
+        tracer: PathTracer {
+            geometry: g,
+            materials,
+            background: &p.scene().background,
+            max_depth: p.settings().max_depth,
+            lights: light_set.as_ref(),
+        },
+        camera: Camera::new(p.camera(), SIZE, SIZE),
+        width: SIZE,
+        height: SIZE,
+        seed: 0,
+    };
+    renderer.render_frame(frame).0
+}
+
+#[test]
+fn every_animated_frame_traces_the_posed_scene() {
+    for builder in [Builder::PHR_FAST, Builder::PHR_HQ.with_branching(4).unwrap(), "binned-sah".parse().unwrap()] {
+        let mut p = pipeline(builder, false);
+        let first = p.geometry().triangles.clone();
+        for frame in 0..6 {
+            let report = p.step(0.125);
+            assert!(report.moved, "{builder}, frame {frame} did not move");
+            check_geometry(&p, builder, frame);
+        }
+        assert_ne!(p.geometry().triangles, first, "{builder}: nothing moved");
+    }
+}
+
+/// Poses depend on the time only: 4 frames of 0.125 s pose the scene as one of 0.5 s.
+#[test]
+fn the_pose_depends_on_the_time_not_the_history() {
+    let mut stepped = pipeline(Builder::PHR_FAST, false);
+    for _ in 0..4 {
+        stepped.step(0.125);
+    }
+    let mut jumped = pipeline(Builder::PHR_FAST, false);
+    jumped.step(0.5);
+    assert_eq!(stepped.time, 0.5);
+    assert_eq!(stepped.geometry().triangles, jumped.geometry().triangles);
+    assert_eq!(stepped.geometry().spheres.len(), jumped.geometry().spheres.len());
+}
+
+/// After a moving frame the film holds that frame alone, as a fresh renderer draws it, light
+/// sampling included: a stale film would ghost, stale lights would light from the old place.
+#[test]
+fn a_moving_frame_shows_only_the_new_pose_with_lights_where_they_are() {
+    for lights in [false, true] {
+        let mut p = pipeline(Builder::PHR_FAST, lights);
+        for frame in 0..3 {
+            let report = p.step(0.25);
+            assert_eq!(report.samples, 1, "lights {lights}, frame {frame}: the film was not restarted");
+            let expected = fresh_render(&p, report.frame as u32, lights);
+            let bits = |v: &[Vec3]| v.iter().map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+            assert!(bits(&p.image()) == bits(&expected), "lights {lights}, frame {frame}: image differs");
+            assert!(expected.iter().any(|c| c.max_element() > 0.1), "lights {lights}: a dark image proves nothing");
+        }
+    }
+}
+
+#[test]
+fn a_paused_pipeline_keeps_its_tree_and_accumulates() {
+    let mut p = pipeline(Builder::PHR_FAST, true);
+    p.step(0.25);
+    let (nodes, triangles) = (p.geometry().bvh().nodes.len(), p.geometry().triangles.clone());
+    p.playing = false;
+    for n in 2..=5 {
+        let report = p.step(0.25);
+        assert!(!report.moved && report.build_ms == 0.0 && report.refit_ms == 0.0, "paused frame rebuilt");
+        assert_eq!(report.samples, n);
+        assert_eq!(report.time, 0.25);
+    }
+    assert_eq!(p.geometry().bvh().nodes.len(), nodes);
+    assert_eq!(p.geometry().triangles, triangles);
+}
