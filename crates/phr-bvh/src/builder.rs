@@ -81,7 +81,7 @@ impl Builder {
         }
     }
 
-    /// The largest leaf this builder makes (for [`crate::validate`]).
+    /// The largest leaf this builder makes (for [`crate::validate()`]).
     pub fn max_leaf_size(&self) -> u32 {
         match self {
             Builder::Lbvh(o) => o.max_leaf_size,

@@ -10,7 +10,7 @@
 //!    small range is then built as an independent rayon task into its own vector, and the
 //!    pieces are concatenated in task order. No locks, no atomics, and the same layout
 //!    whatever the thread count.
-//! 4. Bounds bottom up, in parallel, with one atomic counter per node ([`crate::refit`]), the
+//! 4. Bounds bottom up, in parallel, with one atomic counter per node ([`crate::refit()`]), the
 //!    routine that also refits the tree when vertices move.
 //!
 //! With `max_leaf_size == 1` the result is the full radix tree (one primitive per leaf), the

@@ -2,7 +2,7 @@
 //!
 //! Geometry in, tree out: give the builders one bounding box per primitive, get a [`Bvh`]
 //! (flat node array, see [`node`]); trace rays through it with [`traverse`] and a closure
-//! that intersects your primitives; measure it with [`metrics`]; check it with [`validate`].
+//! that intersects your primitives; measure it with [`metrics`]; check it with [`validate()`].
 //! Nothing here knows about files, materials or images.
 //!
 //! Builders, each in a module named after its algorithm:

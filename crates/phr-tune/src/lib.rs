@@ -5,7 +5,7 @@
 //! This crate evaluates PHR builds ([`evaluator`]), scores them ([`objective`]: the thesis's
 //! normalised objective `e(α, δ)`, and a predicted frame time in milliseconds), and searches
 //! the parameter box by [`grid`] search or by [`bayes`]ian optimisation (a Gaussian process
-//! with expected improvement). [`tune`] runs a whole optimisation as the thesis did, with the
+//! with expected improvement). [`tune()`] runs a whole optimisation as the thesis did, with the
 //! two normalisation runs and a [`cache`] of their maxima.
 
 pub mod bayes;

@@ -33,7 +33,7 @@
 //! - [`simd`]: the ray-versus-`N`-boxes kernels: scalar (any target), SSE (4 lanes; two halves
 //!   for 8) and AVX2 (8 lanes), chosen by [`SimdLevel`] once per tree (runtime feature
 //!   detection in [`SimdLevel::detect`]), not per ray.
-//! - [`traverse`]: the ordered stack traversal, the same algorithm as the binary reference:
+//! - `traverse`: the ordered stack traversal, the same algorithm as the binary reference:
 //!   hit children sorted by entry distance, nearest visited first, the others pushed with
 //!   their entry distance and skipped when popped if that distance exceeds the closest hit
 //!   (with the same `ROBUST_SLAB` slack as the binary traversal). Any-hit stops at the first
@@ -59,23 +59,12 @@
 //! primitive index), closest hits do not depend on the tree or the visit order; the tests in
 //! `tests/wide.rs` compare every level and width with the binary traversal and brute force.
 //!
-//! # Measured
+//! # Speed
 //!
-//! `phr bench-rays` (crates/phr/src/bench_rays.rs; latest table in `docs/bench-rays/`)
-//! traces the same rays through the binary reference, wide-4 and wide-8, and Embree (embreex,
-//! single-ray `rtcIntersect1`). On this 2-core AVX2 machine, one thread, PHR-HQ trees: wide-8
-//! is 2.1–3.5× the binary traversal and faster than wide-4 on every scene and ray kind (so the
-//! renderer uses 8); against Embree it reaches 0.67–0.98× (incoherent rays: 0.67× on the
-//! 871k-triangle dragon, 0.76–0.88× on the others; 0.66–1.06× against Embree's robust
-//! mode). What helped, in order: the wide nodes and SIMD box test (about 2×), merging small
-//! subtrees into 4-triangle leaves tested with one 4-lane Möller–Trumbore (+10–20 %),
-//! prefetching the nodes pushed on the stack and a node's child line on entry (+10–15 % on
-//! the dragon), a sort-free path for two hit children (a few %). What did not: 2 MB pages
-//! for the node and triangle arrays, leaves of up to 8, more aggressive inlining, other
-//! builders (binned and sweep SAH give the same ratios). About half of the time is traversal, and on the
-//! dragon it is bound by memory latency (64 MB of nodes and triangles, ~6 dependent node
-//! loads per ray); compressed (quantised) nodes, as in Embree's and Ylitie et al.'s wide
-//! BVHs, are the next step.
+//! Measured with `phr bench-rays` against the binary traversal and Embree on the same rays:
+//! wide-8 beats wide-4 on every shared scene, so the renderer traces wide-8. The numbers,
+//! and what was tried and did not pay, are in `docs/bench-rays/` (`bench-rays.md`, the latest
+//! run, and `history.md`).
 
 pub mod collapse;
 pub mod simd;
