@@ -7,14 +7,14 @@
 //! the viewer's statistics panel and the headless CSV show.
 
 use crate::animation::Animator;
-use crate::camera::{Camera, CameraDesc};
+use crate::camera::CameraDesc;
 use crate::film::Film;
 use crate::geometry::Geometry;
-use crate::integrator::PathTracer;
 use crate::lights::LightSet;
 use crate::material::Material;
 use crate::output::{srgb_encode, turbo};
 use crate::render::Renderer;
+use crate::scene::RenderSettings;
 use crate::scene::Scene;
 use glam::Vec3;
 use phr_bvh::dynamic::DynamicBvh;
@@ -285,19 +285,9 @@ impl FramePipeline {
     /// One sample per pixel in the current view mode; returns the pixels and the rays traced.
     fn render(&self) -> (Vec<Vec3>, u64) {
         let s = &self.settings;
-        let renderer = Renderer {
-            tracer: PathTracer {
-                geometry: &self.geometry,
-                materials: &self.scene.materials,
-                background: &self.scene.background,
-                max_depth: s.max_depth.max(1),
-                lights: self.lights.as_ref().filter(|_| s.explicit_lights),
-            },
-            camera: Camera::new(&self.camera, s.width, s.height),
-            width: s.width,
-            height: s.height,
-            seed: self.seed,
-        };
+        let size = RenderSettings { width: s.width, height: s.height, spp: 1, max_depth: s.max_depth.max(1) };
+        let lights = self.lights.as_ref().filter(|_| s.explicit_lights);
+        let renderer = Renderer::new(&self.scene, &self.geometry, &self.camera, &size, lights).with_seed(self.seed);
         // While accumulating, the frame number picks new random numbers for every sample;
         // while animating, it keeps the noise from freezing in place.
         let frame = self.frame as u32;

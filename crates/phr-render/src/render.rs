@@ -5,10 +5,12 @@
 //! which visit the same nodes, on one core). Each pixel's random numbers depend only on
 //! (seed, frame, pixel) ([`Pcg32::for_pixel`]), so the image is the same for any thread count.
 
-use crate::camera::Camera;
+use crate::camera::{Camera, CameraDesc};
 use crate::geometry::Geometry;
 use crate::integrator::PathTracer;
+use crate::lights::LightSet;
 use crate::sampler::Pcg32;
+use crate::scene::{RenderSettings, Scene};
 use glam::Vec3;
 use phr_bvh::TraversalStats;
 use rayon::prelude::*;
@@ -28,6 +30,40 @@ pub struct Renderer<'a> {
 pub struct FrameStats {
     /// Rays traced (camera rays and bounces).
     pub rays: u64,
+}
+
+impl<'a> Renderer<'a> {
+    /// The renderer of `scene` (its materials and background) over `geometry` (its primitives
+    /// and tree) seen from `view`, at the size and path depth of `settings` (their `spp` is
+    /// the caller's loop), with seed 0. `lights` turns on explicit light sampling. The one way
+    /// front ends and tests make a renderer.
+    pub fn new(
+        scene: &'a Scene,
+        geometry: &'a Geometry,
+        view: &CameraDesc,
+        settings: &RenderSettings,
+        lights: Option<&'a LightSet>,
+    ) -> Self {
+        let RenderSettings { width, height, max_depth, .. } = *settings;
+        Self {
+            tracer: PathTracer {
+                geometry,
+                materials: &scene.materials,
+                background: &scene.background,
+                max_depth,
+                lights,
+            },
+            camera: Camera::new(view, width, height),
+            width,
+            height,
+            seed: 0,
+        }
+    }
+
+    /// The same renderer with another seed (images differ by seed, not by thread count).
+    pub fn with_seed(self, seed: u64) -> Self {
+        Self { seed, ..self }
+    }
 }
 
 impl Renderer<'_> {

@@ -5,13 +5,12 @@
 
 use glam::Vec3;
 use phr_bvh::Builder;
-use phr_render::camera::Camera;
 use phr_render::film::Film;
 use phr_render::geometry::Geometry;
-use phr_render::integrator::PathTracer;
 use phr_render::lights::LightSet;
 use phr_render::render::Renderer;
 use phr_render::scene::builtin;
+use phr_render::scene::RenderSettings;
 use phr_render::Scene;
 
 const WIDTH: u32 = 48;
@@ -34,19 +33,8 @@ fn render_with(scene: &Scene, threads: usize, seed: u64, builder: Builder, nee: 
         let lights = nee.then(|| LightSet::new(&geometry, &scene.materials));
         assert!(lights.as_ref().is_none_or(|l| !l.is_empty()), "no emissive triangles to sample");
         let view = scene.view(None).expect("default view");
-        let renderer = Renderer {
-            tracer: PathTracer {
-                geometry: &geometry,
-                materials: &scene.materials,
-                background: &scene.background,
-                max_depth: MAX_DEPTH,
-                lights: lights.as_ref(),
-            },
-            camera: Camera::new(&view, WIDTH, HEIGHT),
-            width: WIDTH,
-            height: HEIGHT,
-            seed,
-        };
+        let settings = RenderSettings { width: WIDTH, height: HEIGHT, spp: FRAMES, max_depth: MAX_DEPTH };
+        let renderer = Renderer::new(scene, &geometry, &view, &settings, lights.as_ref()).with_seed(seed);
         let mut film = Film::new(WIDTH, HEIGHT);
         let mut rays = 0;
         for frame in 0..FRAMES {

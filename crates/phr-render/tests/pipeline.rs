@@ -8,12 +8,11 @@
 use glam::Vec3;
 use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
 use phr_bvh::{validate, Builder, Ray};
-use phr_render::camera::Camera;
-use phr_render::integrator::PathTracer;
 use phr_render::lights::LightSet;
 use phr_render::pipeline::{FramePipeline, PipelineSettings, ViewMode};
 use phr_render::render::Renderer;
 use phr_render::scene::json::parse_scene;
+use phr_render::scene::RenderSettings;
 use std::path::Path;
 
 /// A floor, a sphere, and a quad light that moves sideways over them; the floor waves, and so
@@ -99,23 +98,10 @@ fn check_geometry(p: &FramePipeline, builder: Builder, frame: usize) {
 
 /// What a renderer made from scratch over the pipeline's current geometry renders for `frame`.
 fn fresh_render(p: &FramePipeline, frame: u32, lights: bool) -> Vec<Vec3> {
-    let g = p.geometry();
-    let materials = &p.scene().materials;
-    let light_set = lights.then(|| LightSet::new(g, materials));
-    let renderer = Renderer {
-        tracer: PathTracer {
-            geometry: g,
-            materials,
-            background: &p.scene().background,
-            max_depth: p.settings().max_depth,
-            lights: light_set.as_ref(),
-        },
-        camera: Camera::new(p.camera(), SIZE, SIZE),
-        width: SIZE,
-        height: SIZE,
-        seed: 0,
-    };
-    renderer.render_frame(frame).0
+    let (scene, g) = (p.scene(), p.geometry());
+    let light_set = lights.then(|| LightSet::new(g, &scene.materials));
+    let size = RenderSettings { width: SIZE, height: SIZE, spp: 1, max_depth: p.settings().max_depth };
+    Renderer::new(scene, g, p.camera(), &size, light_set.as_ref()).render_frame(frame).0
 }
 
 #[test]

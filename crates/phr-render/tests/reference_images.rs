@@ -13,10 +13,8 @@
 //! environment with both under the target folder, once (see [`python`]).
 
 use phr_bvh::Builder;
-use phr_render::camera::Camera;
 use phr_render::film::Film;
 use phr_render::geometry::Geometry;
-use phr_render::integrator::PathTracer;
 use phr_render::lights::LightSet;
 use phr_render::output::write_image;
 use phr_render::render::Renderer;
@@ -99,19 +97,8 @@ fn check_with(reference: &Reference, spp: u32, nee: bool) {
         assert!(!lights.as_ref().unwrap().is_empty(), "{name} has no emissive triangles to sample");
     }
     let (w, h) = (scene.settings.width, scene.settings.height);
-    let renderer = Renderer {
-        tracer: PathTracer {
-            geometry: &geometry,
-            materials: &scene.materials,
-            background: &scene.background,
-            max_depth: scene.settings.max_depth,
-            lights: lights.as_ref(),
-        },
-        camera: Camera::new(&scene.view(None).unwrap(), w, h),
-        width: w,
-        height: h,
-        seed: 12345,
-    };
+    let renderer =
+        Renderer::new(&scene, &geometry, &scene.view(None).unwrap(), &scene.settings, lights.as_ref()).with_seed(12345);
     let mut film = Film::new(w, h);
     for frame in 0..spp {
         film.add_frame(&renderer.render_frame(frame).0);

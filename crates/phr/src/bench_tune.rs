@@ -13,10 +13,10 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::phr::PhrOptions;
 use phr_bvh::Builder;
-use phr_render::camera::Camera;
 use phr_render::geometry::Geometry;
 use phr_render::output::write_atomically;
 use phr_render::scene::load_scene;
+use phr_render::scene::RenderSettings;
 use phr_tune::bayes::BoOptions;
 use phr_tune::grid::{linspace, THESIS_ALPHAS, THESIS_DELTAS};
 use phr_tune::objective::{OMEGA_P, OMEGA_R};
@@ -93,9 +93,10 @@ pub fn run(args: &BenchTuneArgs) -> Result<()> {
         };
         for &res in &args.resolutions {
             progress.set_message(format!("{name} at {res}²"));
-            let camera = Camera::new(&scene.framing_camera(), res, res);
+            let view = scene.framing_camera();
+            let size = RenderSettings { width: res, height: res, spp: 1, max_depth: MAX_DEPTH };
             let thesis = ObjectiveKind::Thesis { width: res, height: res, omega_p: OMEGA_P, omega_r: OMEGA_R };
-            let model = calibrate(&evaluator, &scene, &mut geometry, &camera, (res, res, MAX_DEPTH), [LOWER, UPPER]);
+            let model = calibrate(&evaluator, &scene, &mut geometry, &view, &size, [LOWER, UPPER]);
             let frame_time = ObjectiveKind::FrameTime(model);
             let options =
                 |method: Method, objective| TuneOptions { method, objective, lower: LOWER, upper: UPPER, cache: None };
@@ -138,7 +139,7 @@ pub fn run(args: &BenchTuneArgs) -> Result<()> {
                     .collect();
                 builds.sort_by(|a, b| a.0.total_cmp(&b.0));
                 let (build_ms, bvh) = builds.swap_remove(1);
-                build_ms + measure_frame(&scene, &mut geometry, bvh, &camera, res, res, MAX_DEPTH).0
+                build_ms + measure_frame(&scene, &mut geometry, bvh, &view, &size).0
             };
             let phr = |(a, d): (f64, f64)| Builder::Phr(PhrOptions::with(a as f32, d as f32));
             let times = [

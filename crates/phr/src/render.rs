@@ -6,10 +6,8 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::builder::BuildReport;
 use phr_bvh::{sah_cost, Builder, SahConstants};
-use phr_render::camera::Camera;
 use phr_render::film::Film;
 use phr_render::geometry::Geometry;
-use phr_render::integrator::PathTracer;
 use phr_render::lights::LightSet;
 use phr_render::output::{write_heatmap, write_image};
 use phr_render::render::Renderer;
@@ -124,7 +122,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         max_depth: args.max_depth.unwrap_or(scene.settings.max_depth),
     };
     settings.check().map_err(anyhow::Error::msg)?;
-    let RenderSettings { width, height, spp, max_depth } = settings;
+    let RenderSettings { width, height, spp, .. } = settings;
 
     let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;
     let mut geometry = Geometry::new(&scene);
@@ -133,19 +131,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     geometry.set_bvh(report.bvh);
     let lights = args.nee.then(|| LightSet::new(&geometry, &scene.materials));
 
-    let renderer = Renderer {
-        tracer: PathTracer {
-            geometry: &geometry,
-            materials: &scene.materials,
-            background: &scene.background,
-            max_depth,
-            lights: lights.as_ref(),
-        },
-        camera: Camera::new(&view, width, height),
-        width,
-        height,
-        seed: args.seed,
-    };
+    let renderer = Renderer::new(&scene, &geometry, &view, &settings, lights.as_ref()).with_seed(args.seed);
     let progress = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(spp as u64) };
     progress.set_style(
         ProgressStyle::with_template("{spinner} rendering [{bar:30}] {pos}/{len} spp  {elapsed} (eta {eta})  {msg}")

@@ -9,10 +9,10 @@ use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::phr::PhrOptions;
 use phr_bvh::Bvh;
-use phr_render::camera::Camera;
+use phr_render::camera::CameraDesc;
 use phr_render::geometry::Geometry;
-use phr_render::integrator::PathTracer;
 use phr_render::render::Renderer;
+use phr_render::scene::RenderSettings;
 use phr_render::Scene;
 use phr_tune::bayes::BoOptions;
 use phr_tune::grid::{THESIS_ALPHAS, THESIS_DELTAS};
@@ -77,30 +77,17 @@ pub struct TuneArgs {
     pub cache: PathBuf,
 }
 
-/// Renders one frame (1 spp) with `bvh`; returns (render ms, rays), median of three.
+/// Renders one frame (1 spp) with `bvh` from `view` at the size and depth of `settings`;
+/// returns (render ms, rays), median of three.
 pub fn measure_frame(
     scene: &Scene,
     geometry: &mut Geometry,
     bvh: Bvh,
-    camera: &Camera,
-    w: u32,
-    h: u32,
-    max_depth: u32,
+    view: &CameraDesc,
+    settings: &RenderSettings,
 ) -> (f64, f64) {
     geometry.set_bvh(bvh);
-    let renderer = Renderer {
-        tracer: PathTracer {
-            geometry,
-            materials: &scene.materials,
-            background: &scene.background,
-            max_depth,
-            lights: None,
-        },
-        camera: camera.clone(),
-        width: w,
-        height: h,
-        seed: 1,
-    };
+    let renderer = Renderer::new(scene, geometry, view, settings, None).with_seed(1);
     let mut runs: Vec<(f64, f64)> = (0..3)
         .map(|frame| {
             let start = Instant::now();
@@ -117,17 +104,16 @@ pub fn calibrate(
     evaluator: &PhrEvaluator,
     scene: &Scene,
     geometry: &mut Geometry,
-    camera: &Camera,
-    args: (u32, u32, u32),
+    view: &CameraDesc,
+    settings: &RenderSettings,
     corners: [[f64; 2]; 2],
 ) -> FrameTimeModel {
-    let (w, h, depth) = args;
     let mut builds = Vec::new();
     let mut renders = Vec::new();
     let mut rays_sum = 0.0;
     for [a, d] in corners {
         let e = evaluator.evaluate(a, d);
-        let (ms, rays) = measure_frame(scene, geometry, evaluator.build(a, d), camera, w, h, depth);
+        let (ms, rays) = measure_frame(scene, geometry, evaluator.build(a, d), view, settings);
         builds.push(e);
         renders.push((e.sah_cost, rays, ms));
         rays_sum += rays;
@@ -139,12 +125,10 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     if args.alphas.is_empty() || args.deltas.is_empty() || args.budget < 3 {
         bail!("need at least one α, one δ and a budget of 3");
     }
-    let size =
-        phr_render::scene::RenderSettings { width: args.width, height: args.height, spp: 1, max_depth: args.max_depth };
+    let size = RenderSettings { width: args.width, height: args.height, spp: 1, max_depth: args.max_depth };
     size.check().map_err(anyhow::Error::msg)?;
     let scene = open_scene(&args.scene)?;
     let view = scene.view(args.view.as_deref()).with_context(|| format!("no view {:?}", args.view))?;
-    let camera = Camera::new(&view, args.width, args.height);
     let mut geometry = Geometry::new(&scene);
     let progress = ProgressBar::new_spinner();
     progress
@@ -170,14 +154,9 @@ pub fn run(args: &TuneArgs) -> Result<()> {
             omega_p: args.omega_p,
             omega_r: args.omega_r,
         },
-        ObjectiveArg::FrameTime => ObjectiveKind::FrameTime(calibrate(
-            &evaluator,
-            &scene,
-            &mut geometry,
-            &camera,
-            (args.width, args.height, args.max_depth),
-            [lower, upper],
-        )),
+        ObjectiveArg::FrameTime => {
+            ObjectiveKind::FrameTime(calibrate(&evaluator, &scene, &mut geometry, &view, &size, [lower, upper]))
+        }
     };
     let method = match args.method {
         MethodArg::Grid => Method::Grid { alphas: args.alphas.clone(), deltas: args.deltas.clone() },
@@ -197,7 +176,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     let start = Instant::now();
     let bvh = evaluator.build(a, d);
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
-    let (render_ms, _) = measure_frame(&scene, &mut geometry, bvh, &camera, args.width, args.height, args.max_depth);
+    let (render_ms, _) = measure_frame(&scene, &mut geometry, bvh, &view, &size);
     let frame_ms = build_ms + render_ms;
     let opt_ms = result.elapsed.as_secs_f64() * 1e3;
     println!(

@@ -56,7 +56,7 @@ pub struct SphereObject {
 }
 
 /// Render settings a scene file may carry; the command line overrides them.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderSettings {
     pub width: u32,
     pub height: u32,

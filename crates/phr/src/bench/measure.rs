@@ -11,6 +11,7 @@ use phr_render::camera::Camera;
 use phr_render::geometry::Geometry;
 use phr_render::output::write_heatmap;
 use phr_render::scene::json::load_scene_file;
+use phr_render::scene::RenderSettings;
 use phr_render::Scene;
 use phr_tune::bayes::BoOptions;
 use phr_tune::grid::{THESIS_ALPHAS, THESIS_DELTAS};
@@ -135,19 +136,11 @@ impl SceneCtx<'_> {
     fn render(&mut self, bvh: Bvh, res: u32) -> (f64, f64, Bvh) {
         let mut bvh = bvh;
         let (mut ms_sum, mut rays_sum) = (0.0, 0.0);
+        let size = RenderSettings { width: res, height: res, spp: 1, max_depth: self.scene.settings.max_depth };
         for view in &self.views {
-            let camera = Camera::new(view, res, res);
             let mut frames: Vec<(f64, f64)> = Vec::new();
             for _ in 0..self.repeats {
-                frames.push(measure_frame(
-                    self.scene,
-                    &mut self.geometry,
-                    bvh,
-                    &camera,
-                    res,
-                    res,
-                    self.scene.settings.max_depth,
-                ));
+                frames.push(measure_frame(self.scene, &mut self.geometry, bvh, view, &size));
                 bvh = self.geometry.take_bvh();
             }
             frames.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -247,9 +240,9 @@ pub fn measure_scene(
     }
     results.heatmaps.push((name.clone(), heatmap_pair(&mut ctx, res, out)?));
     if plan.peers {
-        let camera = Camera::new(&ctx.views[0], res, res);
+        let view = &ctx.views[0];
         if let Some(row) =
-            progress.suspend(|| super::peers::run(&name, path, &scene, &mut ctx.geometry, &camera, res, out))?
+            progress.suspend(|| super::peers::run(&name, path, &scene, &mut ctx.geometry, view, res, out))?
         {
             results.peers.push(row);
         }

@@ -7,9 +7,10 @@
 use crate::bench_build::{throughput, RaySet};
 use anyhow::{Context, Result};
 use phr_bvh::{Builder, Ray};
-use phr_render::camera::Camera;
+use phr_render::camera::{Camera, CameraDesc};
 use phr_render::geometry::Geometry;
 use phr_render::output::write_atomically;
+use phr_render::scene::RenderSettings;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -73,7 +74,7 @@ pub fn run(
     scene_file: &Path,
     scene_data: &phr_render::Scene,
     geometry: &mut Geometry,
-    camera: &Camera,
+    view: &CameraDesc,
     res: u32,
     out: &Path,
 ) -> Result<Option<PeerRow>> {
@@ -94,15 +95,15 @@ pub fn run(
     let report = Builder::PHR_HQ.build_timed(&geometry.boxes);
     let ours_build_ms = report.total_time().as_secs_f64() * 1e3;
     geometry.set_bvh(report.bvh);
-    let rays = RaySet::new(geometry, camera, res);
+    let rays = RaySet::new(geometry, &Camera::new(view, res, res), res);
     write_rays(&dir, "primary", geometry, &rays.primary)?;
     write_rays(&dir, "diffuse", geometry, &rays.diffuse)?;
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     let (ours_primary, ours_diffuse) =
         one.install(|| (throughput(geometry, &rays.primary), throughput(geometry, &rays.diffuse)));
     let bvh = geometry.take_bvh();
-    let (ours_frame_ms, _) =
-        crate::tune::measure_frame(scene_data, geometry, bvh, camera, res, res, scene_data.settings.max_depth);
+    let size = RenderSettings { width: res, height: res, spp: 1, max_depth: scene_data.settings.max_depth };
+    let (ours_frame_ms, _) = crate::tune::measure_frame(scene_data, geometry, bvh, view, &size);
     let mut command = Command::new("python3");
     command.arg(&script).arg(&dir).args(["--scene"]).arg(scene_file).args(["--res", &res.to_string()]);
     if let Some(scenes) = phr_render::scene::json::scenes_dir(scene_file) {
