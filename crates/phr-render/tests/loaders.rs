@@ -2,6 +2,7 @@
 //! and the real benchmark scenes of `/work/shared/scenes` (skipped when absent).
 
 use flate2::write::GzEncoder;
+use glam::Vec3;
 use phr_render::load::{load_mesh, MeshData, SourceMaterial};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -138,7 +139,7 @@ fn error_of(path: &Path) -> String {
 fn bad_inputs_give_clear_errors() {
     let dir = TempDir::new("bad");
     let missing = dir.0.join("missing.obj");
-    assert!(error_of(&missing).contains("missing.obj: cannot open: "), "{}", error_of(&missing));
+    assert!(error_of(&missing).contains("missing.obj: cannot open the mesh file: "), "{}", error_of(&missing));
     let unknown = dir.write("mesh.stl", "solid");
     assert!(error_of(&unknown).contains("unknown mesh format"));
     assert!(error_of(&dir.write("mesh.gz", gzip(b"x"))).contains("unknown mesh format"));
@@ -166,6 +167,82 @@ fn bad_inputs_give_clear_errors() {
     ply.extend_from_slice(&[3, 0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0, 3, 0]);
     let truncated = dir.write("cut.ply", ply);
     assert!(error_of(&truncated).ends_with("cut.ply: file ends after 1 of 2 faces"), "{}", error_of(&truncated));
+
+    // Devices and folders are not read (a device such as /dev/zero never ends).
+    let folder = dir.0.join("folder.obj");
+    std::fs::create_dir_all(&folder).unwrap();
+    assert!(error_of(&folder).contains("folder.obj: the mesh file is not a regular file"), "{}", error_of(&folder));
+    let device_mtl = dir.write("device.obj", "mtllib /dev/zero\nv 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n");
+    let message = error_of(&device_mtl);
+    assert!(message.contains("device.obj:1: material library /dev/zero is not a regular file"), "{message}");
+}
+
+/// A UTF-8 byte-order mark before an OBJ used to swallow the first vertex and shift every
+/// index; it is skipped now, as in every editor.
+#[test]
+fn byte_order_mark_is_skipped() {
+    let dir = TempDir::new("bom");
+    let plain = "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n";
+    let with_bom = dir.write("bom.obj", [b"\xEF\xBB\xBF".as_slice(), plain.as_bytes()].concat());
+    let mesh = load_mesh(&with_bom).unwrap();
+    assert_eq!(mesh.positions, [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0)]);
+    assert_eq!(mesh.triangles, [[0, 1, 2]]);
+}
+
+/// A material library named many times on one `mtllib` line is read once and works.
+#[test]
+fn a_repeated_material_library_is_read_once() {
+    let dir = TempDir::new("mtl-repeat");
+    dir.write("m.mtl", "newmtl red\nKd 1 0 0\n");
+    let names = vec!["m.mtl"; 10_000].join(" ");
+    let obj = dir.write("r.obj", format!("mtllib {names}\nv 0 0 0\nv 1 0 0\nv 1 1 0\nusemtl red\nf 1 2 3\n"));
+    let mesh = load_mesh(&obj).unwrap();
+    assert_eq!(mesh.groups, ["red"]);
+    assert!(matches!(&mesh.group_materials[0], SourceMaterial::Mtl(m) if m.kd == Some([1.0, 0.0, 0.0])));
+}
+
+/// glTF buffers: a missing one is named, one outside the asset's folder or behind another
+/// URI scheme is refused, a percent-escaped name is decoded.
+#[test]
+fn gltf_buffers_are_named_and_confined() {
+    let dir = TempDir::new("gltf-buffers");
+    let tri: Vec<u8> = [0f32, 0., 0., 1., 0., 0., 0., 1., 0.].iter().flat_map(|f| f.to_le_bytes()).collect();
+    let gltf = |uri: &str| {
+        format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}], "nodes": [{{"mesh": 0}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}}}]}}],
+  "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}}],
+  "bufferViews": [{{"buffer": 0, "byteLength": 36}}],
+  "buffers": [{{"byteLength": 36, "uri": "{uri}"}}]}}"#
+        )
+    };
+    dir.write("my tri.bin", &tri);
+    let ok = dir.write("ok.gltf", gltf("my%20tri.bin"));
+    assert_eq!(load_mesh(&ok).unwrap().triangles.len(), 1);
+    let missing = dir.write("missing.gltf", gltf("gone.bin"));
+    let message = error_of(&missing);
+    assert!(message.contains("gone.bin: cannot open buffer 0 of") && message.contains("missing.gltf"), "{message}");
+    // 48 levels of two nodes, each with both nodes of the next level as children: 2⁴⁸ paths
+    // to the one triangle at the bottom. Refused before anything is instanced.
+    let mut nodes: Vec<String> =
+        (0..47).flat_map(|l| [0, 1].map(|_| format!(r#"{{"children": [{}, {}]}}"#, 2 * l + 2, 2 * l + 3))).collect();
+    nodes.extend([r#"{"mesh": 0}"#.to_string(), r#"{"mesh": 0}"#.to_string()]);
+    let bomb =
+        gltf("my%20tri.bin").replace(r#""nodes": [{"mesh": 0}]"#, &format!(r#""nodes": [{}]"#, nodes.join(", ")));
+    let bomb =
+        dir.write("bomb.gltf", bomb.replace(r#""scenes": [{"nodes": [0]}]"#, r#""scenes": [{"nodes": [0, 1]}]"#));
+    let message = error_of(&bomb);
+    assert!(message.contains("bomb.gltf: the node hierarchy instances") && message.contains("more than"), "{message}");
+    for (name, uri, needle) in [
+        ("up.gltf", "../secret.bin", "leaves the asset's folder"),
+        ("abs.gltf", "/etc/passwd", "leaves the asset's folder"),
+        ("scheme.gltf", "http://example.com/x.bin", "URI scheme"),
+        ("escape.gltf", "%FF%FE.bin", "not UTF-8"),
+    ] {
+        let file = dir.write(name, gltf(uri));
+        let message = error_of(&file);
+        assert!(message.contains(&format!("{name}: buffer 0: `{uri}`")) && message.contains(needle), "{message}");
+    }
 }
 
 /// The benchmark scenes; prints load times (run with `--nocapture` to see them).

@@ -27,15 +27,48 @@ use std::path::Path;
 
 /// Deeper node hierarchies are taken for cycles (which glTF forbids).
 const MAX_DEPTH: usize = 256;
+/// The most vertices a file's node hierarchy may instance. Nodes may share children, so a
+/// small file can instance its meshes exponentially often (40 levels of two children sharing
+/// one node: 2⁴⁰ instances); 2²⁷ vertices (1.5 GiB of positions) is far above any real asset.
+const MAX_INSTANCED_VERTICES: u64 = 1 << 27;
+
+/// The vertices `node` and its descendants instance (triangle primitives' POSITION counts,
+/// once per path through the hierarchy), memoised per node so that shared children cost
+/// nothing; saturating, and `u64::MAX` past [`MAX_DEPTH`] (a cycle).
+fn instanced_vertices(node: &Node, memo: &mut HashMap<usize, u64>, depth: usize) -> u64 {
+    if depth > MAX_DEPTH {
+        return u64::MAX;
+    }
+    if let Some(&n) = memo.get(&node.index()) {
+        return n;
+    }
+    let own = node.mesh().map_or(0, |m| {
+        (m.primitives().filter(|p| p.mode() == Mode::Triangles))
+            .filter_map(|p| p.get(&::gltf::Semantic::Positions))
+            .fold(0u64, |sum, a| sum.saturating_add(a.count() as u64))
+    });
+    let total = node.children().fold(own, |sum, c| sum.saturating_add(instanced_vertices(&c, memo, depth + 1)));
+    memo.insert(node.index(), total);
+    total
+}
 
 /// Parses a glTF or GLB file held in memory; external buffers are read from `base_dir`.
 pub(super) fn parse(path: &Path, base_dir: &Path, bytes: &[u8]) -> Result<MeshData, LoadError> {
     let invalid = |message: String| LoadError::new(path, format!("invalid glTF: {message}"));
     let (document, blob) = read_document(bytes).map_err(invalid)?;
-    let buffers = ::gltf::import_buffers(&document, Some(base_dir), blob).map_err(|e| invalid(e.to_string()))?;
-    let buffers: Vec<&[u8]> = buffers.iter().map(|data| &data.0[..]).collect();
+    let buffers = load_buffers(path, base_dir, &document, blob)?;
+    let buffers: Vec<&[u8]> = buffers.iter().map(|data| &data[..]).collect();
     let scene = (document.default_scene().or_else(|| document.scenes().next()))
         .ok_or_else(|| LoadError::new(path, "glTF file has no scene"))?;
+    let instanced =
+        scene.nodes().fold(0u64, |sum, n| sum.saturating_add(instanced_vertices(&n, &mut HashMap::new(), 0)));
+    if instanced > MAX_INSTANCED_VERTICES {
+        let message = format!(
+            "the node hierarchy instances {} vertices, more than {MAX_INSTANCED_VERTICES} (nodes sharing children multiply)",
+            if instanced == u64::MAX { "over 2^64".to_string() } else { instanced.to_string() }
+        );
+        return Err(LoadError::new(path, message));
+    }
     let animated = document.animations().next().is_some();
     let mut builder = Builder {
         path,
@@ -51,6 +84,74 @@ pub(super) fn parse(path: &Path, base_dir: &Path, bytes: &[u8]) -> Result<MeshDa
         builder.mesh.animation = builder.animation(&document, parts)?.map(Box::new);
     }
     finish(path, builder.mesh)
+}
+
+/// The document's buffers: the GLB's binary chunk, `data:` URIs, and files relative to the
+/// asset's folder. Files are read through [`super::input::read_file`] (regular files only,
+/// bounded), and may not leave the asset's folder (no absolute paths, no `..`), so a
+/// downloaded asset cannot make us read elsewhere; every error names the buffer and its URI.
+/// (The `gltf` crate's own `import_buffers` names neither, panics on percent-escapes that are
+/// not UTF-8, and follows any path.)
+fn load_buffers(
+    path: &Path,
+    base_dir: &Path,
+    document: &Document,
+    mut blob: Option<Vec<u8>>,
+) -> Result<Vec<Vec<u8>>, LoadError> {
+    use ::gltf::buffer::Source;
+    let mut buffers = Vec::new();
+    for buffer in document.buffers() {
+        let i = buffer.index();
+        let fail = |message: String| LoadError::new(path, format!("buffer {i}: {message}"));
+        let mut data = match buffer.source() {
+            Source::Bin => blob.take().ok_or_else(|| fail("the GLB has no binary chunk".into()))?,
+            Source::Uri(uri) if uri.starts_with("data:") => {
+                ::gltf::buffer::Data::from_source(Source::Uri(uri), None)
+                    .map_err(|e| fail(format!("invalid data URI: {e}")))?
+                    .0
+            }
+            Source::Uri(uri) => {
+                let relative = confined_path(uri).map_err(|e| fail(format!("`{uri}` {e}")))?;
+                let file = base_dir.join(relative);
+                super::input::read_file(&file, &format!("buffer {i} of {}", path.display()))?
+            }
+        };
+        if data.len() < buffer.length() {
+            return Err(fail(format!("holds {} bytes, its byteLength says {}", data.len(), buffer.length())));
+        }
+        data.resize(data.len().next_multiple_of(4), 0);
+        buffers.push(data);
+    }
+    Ok(buffers)
+}
+
+/// A relative URI as a path inside the asset's folder: percent-escapes decoded, and refused if
+/// it has a scheme, is absolute, or climbs out with `..`.
+fn confined_path(uri: &str) -> Result<std::path::PathBuf, &'static str> {
+    if uri.contains(':') {
+        return Err("has a URI scheme other than data: (only relative file names are read)");
+    }
+    let mut bytes = Vec::with_capacity(uri.len());
+    let mut rest = uri.as_bytes();
+    while let Some((&b, tail)) = rest.split_first() {
+        if b == b'%' {
+            let hex = tail.get(..2).and_then(|h| std::str::from_utf8(h).ok());
+            let value = hex.and_then(|h| u8::from_str_radix(h, 16).ok()).ok_or("has a bad percent-escape")?;
+            bytes.push(value);
+            rest = &tail[2..];
+        } else {
+            bytes.push(b);
+            rest = tail;
+        }
+    }
+    let decoded = String::from_utf8(bytes).map_err(|_| "is not UTF-8 once decoded")?;
+    let relative = std::path::PathBuf::from(decoded);
+    let inside =
+        relative.components().all(|c| matches!(c, std::path::Component::Normal(_) | std::path::Component::CurDir));
+    if relative.as_os_str().is_empty() || !inside {
+        return Err("leaves the asset's folder (absolute, or with `..`)");
+    }
+    Ok(relative)
 }
 
 /// Parses and validates the JSON (and the GLB chunks), refusing first what would make the

@@ -82,11 +82,11 @@ impl MeshData {
 pub type MtlLibrary = HashMap<String, MtlEntry>;
 
 mod gltf;
+pub mod input;
 mod obj;
 mod ply;
 
 use crate::error::LoadError;
-use std::io::Read;
 use std::path::Path;
 
 /// The file formats [`load_mesh`] understands.
@@ -115,9 +115,9 @@ impl Format {
 /// Every error names the file, and the line for text formats.
 pub fn load_mesh(path: &Path) -> Result<MeshData, LoadError> {
     let (format, gzipped) = detect_format(path)?;
-    let mut bytes = std::fs::read(path).map_err(|e| LoadError::new(path, format!("cannot open: {e}")))?;
+    let mut bytes = input::read_file(path, "the mesh file")?;
     if gzipped {
-        bytes = gunzip(path, &bytes)?;
+        bytes = input::gunzip(path, &bytes)?;
     }
     // Files an OBJ or glTF refers to (MTL, .bin buffers) are looked up next to the file.
     let base_dir = path.parent().unwrap_or_else(|| Path::new(""));
@@ -138,15 +138,6 @@ fn detect_format(path: &Path) -> Result<(Format, bool), LoadError> {
     }
     let inner = path.file_stem().map(Path::new).and_then(lower_extension).ok_or_else(unknown)?;
     Format::from_extension(&inner).map(|f| (f, true)).ok_or_else(unknown)
-}
-
-/// Decompresses a whole gzip file (all members) into memory.
-fn gunzip(path: &Path, compressed: &[u8]) -> Result<Vec<u8>, LoadError> {
-    let mut out = Vec::new();
-    flate2::read::MultiGzDecoder::new(compressed)
-        .read_to_end(&mut out)
-        .map_err(|e| LoadError::new(path, format!("cannot decompress: {e}")))?;
-    Ok(out)
 }
 
 /// Where a value came from in its file, for error messages.

@@ -18,7 +18,7 @@ use std::str::SplitAsciiWhitespace;
 
 /// Parses an OBJ file held in memory; `base_dir` is where `mtllib` paths are resolved.
 pub(super) fn parse(path: &Path, base_dir: &Path, bytes: &[u8]) -> Result<MeshData, LoadError> {
-    let text = String::from_utf8_lossy(bytes);
+    let text = String::from_utf8_lossy(super::input::strip_bom(bytes));
     let mut parser = Parser::new(path, base_dir);
     for (i, line) in text.lines().enumerate() {
         parser.line(line, i + 1)?;
@@ -32,6 +32,8 @@ struct Parser<'a> {
     base_dir: &'a Path,
     mesh: MeshData,
     library: MtlLibrary,
+    /// The material libraries read so far.
+    libraries_read: std::collections::HashSet<std::path::PathBuf>,
     /// Group index by name.
     group_index: HashMap<String, u32>,
     /// The name given by the last `usemtl`, if any.
@@ -50,6 +52,7 @@ impl<'a> Parser<'a> {
             base_dir,
             mesh: MeshData::default(),
             library: MtlLibrary::new(),
+            libraries_read: Default::default(),
             group_index: HashMap::new(),
             material: None,
             group: None,
@@ -173,10 +176,12 @@ impl<'a> Parser<'a> {
         for file in files {
             any = true;
             let mtl_path = self.base_dir.join(file);
-            let bytes = std::fs::read(&mtl_path).map_err(|e| {
-                let message = format!("cannot open material library {}: {e}", mtl_path.display());
-                self.error(line_no, message)
-            })?;
+            // Each library is read once per load, however often it is named.
+            if !self.libraries_read.insert(mtl_path.clone()) {
+                continue;
+            }
+            let what = format!("material library {}", mtl_path.display());
+            let bytes = super::input::read_file(&mtl_path, &what).map_err(|e| self.error(line_no, e.message))?;
             // Later definitions of the same name win, as in most readers.
             self.library.extend(parse_mtl(&mtl_path, &bytes)?);
         }
@@ -214,7 +219,7 @@ fn rest_after_keyword<'l>(line: &'l str, keyword: &str) -> &'l str {
 
 /// Parses an MTL file held in memory; `path` is only used in error messages.
 pub(super) fn parse_mtl(path: &Path, bytes: &[u8]) -> Result<MtlLibrary, LoadError> {
-    let text = String::from_utf8_lossy(bytes);
+    let text = String::from_utf8_lossy(super::input::strip_bom(bytes));
     let mut library = MtlLibrary::new();
     let mut current: Option<MtlBuilder> = None;
     for (i, line) in text.lines().enumerate() {

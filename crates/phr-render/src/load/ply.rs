@@ -16,6 +16,7 @@ use std::str::SplitAsciiWhitespace;
 
 /// Parses a PLY file held in memory; `path` is only used in error messages.
 pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData, LoadError> {
+    let bytes = super::input::strip_bom(bytes);
     let header = parse_header(path, bytes)?;
     let layout = Layout::of(path, &header)?;
     let body = bytes.get(header.body_start..).unwrap_or_default();

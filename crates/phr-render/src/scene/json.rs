@@ -280,8 +280,10 @@ impl TransformFile {
 
 /// Reads a scene file.
 pub fn load_scene_file(path: &Path) -> Result<Scene, LoadError> {
-    let text = std::fs::read_to_string(path).map_err(|e| LoadError::new(path, format!("cannot read: {e}")))?;
-    parse_scene(&text, path)
+    let bytes = crate::load::input::read_file(path, "the scene file")?;
+    let text = std::str::from_utf8(crate::load::input::strip_bom(&bytes))
+        .map_err(|e| LoadError::new(path, format!("not UTF-8 text: {e}")))?;
+    parse_scene(text, path)
 }
 
 /// Parses scene JSON; `path` names the file in errors and anchors relative paths.
