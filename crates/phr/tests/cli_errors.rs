@@ -254,6 +254,98 @@ fn image_size_and_depth_limits() {
     }
 }
 
+/// Scene values that cannot make an image, and keys that mean nothing, used to be accepted
+/// without a word (a `fov` key ignored, a sphere's transform dropped, a period of 1e-45 s
+/// posing NaN vertices). Each is one clear error naming the file and the place.
+#[test]
+fn nonsense_scene_values_are_errors() {
+    let scene = |camera: &str, material: &str, object: &str| {
+        format!(
+            r#"{{ "camera": {{ {camera} }},
+  "materials": {{ "m": {material} }},
+  "objects": [ {object} ] }}"#
+        )
+    };
+    let cam = r#""position": [0, 0, 5], "look_at": [0, 0, 0], "vfov": 40"#;
+    let white = r#"{ "type": "lambertian", "albedo": 0.7 }"#;
+    let ball = r#"{ "type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m" }"#;
+    let moving = |motion: &str| {
+        format!(r#"{{ "type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m", "animate": {motion} }}"#)
+    };
+    let cases: Vec<(&str, String, &[&str])> = vec![
+        (
+            "fov",
+            scene(r#""position": [0, 0, 5], "look_at": [0, 0, 0], "fov": 40"#, white, ball),
+            &["camera", "unknown key \"fov\""],
+        ),
+        (
+            "sphere-transform",
+            scene(
+                cam,
+                white,
+                r#"{ "type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m", "transform": { "scale": 2 } }"#,
+            ),
+            &["object 0 (sphere)", "unknown key \"transform\""],
+        ),
+        (
+            "top-level",
+            scene(cam, white, ball).replacen('{', r#"{ "sample_count": 4,"#, 1),
+            &["top level", "sample_count"],
+        ),
+        (
+            "albedo",
+            scene(cam, r#"{ "type": "lambertian", "albedo": [0.5, -0.1, 0.5] }"#, ball),
+            &["material \"m\"", "albedo"],
+        ),
+        ("emit-nan", scene(cam, r#"{ "type": "emissive", "emit": 1e39 }"#, ball), &["material \"m\"", "emit"]),
+        ("ior", scene(cam, r#"{ "type": "dielectric", "ior": 0 }"#, ball), &["material \"m\"", "ior 0"]),
+        (
+            "vfov-0",
+            scene(r#""position": [0, 0, 5], "look_at": [0, 0, 0], "vfov": 0"#, white, ball),
+            &["camera", "vfov 0"],
+        ),
+        (
+            "vfov-180",
+            scene(r#""position": [0, 0, 5], "look_at": [0, 0, 0], "vfov": 180"#, white, ball),
+            &["camera", "vfov 180"],
+        ),
+        (
+            "look-at",
+            scene(r#""position": [1, 2, 3], "look_at": [1, 2, 3]"#, white, ball),
+            &["camera", "look_at equals position"],
+        ),
+        (
+            "up",
+            scene(r#""position": [0, 5, 0], "look_at": [0, 0, 0], "up": [0, 1, 0]"#, white, ball),
+            &["camera", "parallel"],
+        ),
+        (
+            "period",
+            scene(cam, white, &moving(r#"{ "type": "oscillate", "amplitude": [1, 0, 0], "period": 1e-45 }"#)),
+            &["object 0", "period"],
+        ),
+        (
+            "rotation",
+            scene(cam, white, &moving(r#"{ "type": "rotate", "degrees_per_second": 1e39 }"#)),
+            &["object 0", "degrees_per_second"],
+        ),
+    ];
+    for (test, json, needles) in cases {
+        let line = expect_render_failure(
+            &format!("nonsense-{test}"),
+            &[("s.json", json.as_bytes())],
+            "s.json",
+            &["--spp", "1"],
+        );
+        assert_names(&line, &[&["s.json"], needles].concat());
+    }
+    // The same scene without the nonsense renders.
+    let dir = TempDir::new("nonsense-ok");
+    dir.write("s.json", scene(cam, white, &moving(r#"{ "type": "oscillate", "amplitude": [1, 0, 0], "period": 2 }"#)));
+    let out = phr(&dir.0, &["render", "s.json", "--out", "out.png", "--width", "8", "--height", "8", "--spp", "1"]);
+    assert_eq!(out.code, Some(0), "{}", out.stderr);
+}
+
 #[test]
 fn json_unknown_material_name() {
     let json = r#"{

@@ -161,6 +161,27 @@ enum MaterialFile {
     },
 }
 
+impl MaterialFile {
+    /// Refuses what no material can be: colours that are negative or not finite, an index of
+    /// refraction that is not positive.
+    fn check(&self) -> Result<(), String> {
+        let colour = |c: Color, what: &str| {
+            let v = Vec3::from(c);
+            if v.is_finite() && v.min_element() >= 0.0 {
+                Ok(())
+            } else {
+                Err(format!("{what} [{}, {}, {}] must be finite and not negative", v.x, v.y, v.z))
+            }
+        };
+        match *self {
+            MaterialFile::Lambertian { albedo } | MaterialFile::Metal { albedo, .. } => colour(albedo, "albedo"),
+            MaterialFile::Emissive { emit, .. } => colour(emit, "emit"),
+            MaterialFile::Dielectric { ior } if ior.is_finite() && ior > 0.0 => Ok(()),
+            MaterialFile::Dielectric { ior } => Err(format!("ior {ior} must be finite and positive")),
+        }
+    }
+}
+
 impl From<&MaterialFile> for Material {
     fn from(m: &MaterialFile) -> Material {
         match *m {
@@ -288,13 +309,76 @@ pub fn load_scene_file(path: &Path) -> Result<Scene, LoadError> {
 
 /// Parses scene JSON; `path` names the file in errors and anchors relative paths.
 pub fn parse_scene(text: &str, path: &Path) -> Result<Scene, LoadError> {
-    let file: SceneFile = serde_json::from_str(text).map_err(|e| {
+    let syntax = |e: serde_json::Error| {
         let message = e.to_string();
         let message = message.split(" at line ").next().unwrap_or(&message).to_string();
         LoadError::at_line(path, e.line(), message)
-    })?;
+    };
+    let value: serde_json::Value = serde_json::from_str(text).map_err(syntax)?;
+    check_keys(&value).map_err(|message| LoadError::new(path, message))?;
+    let file: SceneFile = serde_json::from_str(text).map_err(syntax)?;
     SceneBuilder { path, scene: Scene::default() }.build(file)
 }
+
+/// The keys each part of a scene file may have. An unknown key is an error, not ignored: a
+/// misspelt `fov` used to leave the camera at 90° without a word, a `transform` on a sphere
+/// was dropped. (Materials, motions and transforms are checked by their types.)
+const TOP_LEVEL_KEYS: &[&str] = &[
+    "description",
+    "width",
+    "height",
+    "resolution",
+    "spp",
+    "max_depth",
+    "camera",
+    "views",
+    "background",
+    "materials",
+    "objects",
+];
+const CAMERA_KEYS: &[&str] = &["position", "lookfrom", "look_at", "lookat", "up", "vup", "vfov"];
+
+fn object_keys(kind: &str) -> Option<&'static [&'static str]> {
+    Some(match kind {
+        "sphere" => &["type", "center", "radius", "material", "animate"],
+        "quad" => &["type", "Q", "u", "v", "material", "transform", "animate"],
+        "triangle" => &["type", "v0", "v1", "v2", "material", "transform", "animate"],
+        "triangles" => &["type", "vertices", "faces", "material", "transform", "animate"],
+        "mesh" => &["type", "file", "material", "transform", "smooth_normals", "animate"],
+        "obj_mtl" => &["type", "file", "materials", "material", "transform", "mtl_mapping", "animate"],
+        "gltf" => &["type", "file", "transform", "animate"],
+        _ => return None,
+    })
+}
+
+/// Fails on the first key that [`TOP_LEVEL_KEYS`], [`CAMERA_KEYS`] or [`object_keys`] do not
+/// list, naming where it is and what is allowed there.
+fn check_keys(scene: &serde_json::Value) -> Result<(), String> {
+    fn check(value: &serde_json::Value, allowed: &[&str], place: &str) -> Result<(), String> {
+        let Some(map) = value.as_object() else { return Ok(()) };
+        match map.keys().find(|k| !allowed.contains(&k.as_str())) {
+            Some(key) => Err(format!("{place}: unknown key \"{key}\" (allowed: {})", allowed.join(", "))),
+            None => Ok(()),
+        }
+    }
+    check(scene, TOP_LEVEL_KEYS, "top level")?;
+    if let Some(camera) = scene.get("camera") {
+        check(camera, CAMERA_KEYS, "camera")?;
+    }
+    for (name, view) in scene.get("views").and_then(|v| v.as_object()).into_iter().flatten() {
+        check(view, CAMERA_KEYS, &format!("view \"{name}\""))?;
+    }
+    for (i, object) in scene.get("objects").and_then(|v| v.as_array()).into_iter().flatten().enumerate() {
+        let kind = object.get("type").and_then(|t| t.as_str()).unwrap_or("");
+        if let Some(allowed) = object_keys(kind) {
+            check(object, allowed, &format!("object {i} ({kind})"))?;
+        }
+    }
+    Ok(())
+}
+
+/// The shortest period or wavelength a motion may have (see `SceneBuilder::animate`).
+const MIN_PERIOD: f32 = 1e-6;
 
 struct SceneBuilder<'a> {
     path: &'a Path,
@@ -320,13 +404,15 @@ impl SceneBuilder<'_> {
             }
         };
         for (name, m) in &file.materials {
+            m.check().map_err(|e| self.err(format!("material \"{name}\": {e}")))?;
             self.scene.add_material(name.clone(), m.into());
         }
         if let Some(c) = &file.camera {
-            self.scene.views.push(("default".into(), camera_desc(c)));
+            self.scene.views.push(("default".into(), camera_desc(c).map_err(|e| self.err(format!("camera: {e}")))?));
         }
         for (name, c) in &file.views {
-            self.scene.views.push((name.clone(), camera_desc(c)));
+            let view = camera_desc(c).map_err(|e| self.err(format!("view \"{name}\": {e}")))?;
+            self.scene.views.push((name.clone(), view));
         }
         for (i, entry) in file.objects.iter().enumerate() {
             let (meshes, spheres) = (self.scene.meshes.len(), self.scene.spheres.len());
@@ -376,24 +462,43 @@ impl SceneBuilder<'_> {
                 Err(bad(&format!("{what} must be a non-zero vector")))
             }
         };
+        // Periods and wavelengths below a millionth (of a second, of a unit) make `t / period`
+        // overflow to infinity and the pose NaN; amounts must be finite and within the range
+        // the renderer accepts.
         let positive = |x: f32, what: &str| {
-            if x.is_finite() && x > 0.0 {
+            if x.is_finite() && x >= MIN_PERIOD {
                 Ok(x)
             } else {
-                Err(bad(&format!("{what} must be positive")))
+                Err(bad(&format!("{what} {x} must be at least {MIN_PERIOD:e}")))
             }
+        };
+        let amount = |x: f32, what: &str| {
+            if x.is_finite() && x.abs() <= super::MAX_COORDINATE {
+                Ok(x)
+            } else {
+                Err(bad(&format!("{what} {x} must be finite and at most {:e}", super::MAX_COORDINATE)))
+            }
+        };
+        let amounts = |v: [f32; 3], what: &str| -> Result<Vec3, LoadError> {
+            for x in v {
+                amount(x, what)?;
+            }
+            Ok(v.into())
         };
         let mut motions = Vec::with_capacity(list.len());
         for m in list {
             motions.push(match m {
                 MotionFile::Rotate { axis, pivot: p, degrees_per_second } => {
-                    Motion::Rotate { axis: unit(axis, "axis")?, pivot: p.map_or(pivot, Vec3::from), degrees_per_second }
+                    let pivot = p.map_or(Ok(pivot), |p| amounts(p, "pivot"))?;
+                    let degrees_per_second = amount(degrees_per_second, "degrees_per_second")?;
+                    Motion::Rotate { axis: unit(axis, "axis")?, pivot, degrees_per_second }
                 }
-                MotionFile::Oscillate { amplitude, period } => {
-                    Motion::Oscillate { amplitude: amplitude.into(), period: positive(period, "period")? }
-                }
+                MotionFile::Oscillate { amplitude, period } => Motion::Oscillate {
+                    amplitude: amounts(amplitude, "amplitude")?,
+                    period: positive(period, "period")?,
+                },
                 MotionFile::Wave { amplitude, wavelength, period, direction, displacement } => Motion::Wave {
-                    amplitude,
+                    amplitude: amount(amplitude, "amplitude")?,
                     wavelength: positive(wavelength, "wavelength")?,
                     period: positive(period, "period")?,
                     direction: unit(direction, "direction")?,
@@ -449,6 +554,9 @@ impl SceneBuilder<'_> {
                     MtlMappingFile::Reference => MtlMapping::Reference,
                     MtlMappingFile::Full => MtlMapping::Full,
                 };
+                for (name, m) in materials {
+                    m.check().map_err(|e| self.err(format!("object {i}: material \"{name}\": {e}")))?;
+                }
                 let data = self.load(file, transform)?;
                 let group_material: Vec<u32> = (0..data.groups.len())
                     .map(|g| {
@@ -532,8 +640,29 @@ impl SceneBuilder<'_> {
     }
 }
 
-fn camera_desc(c: &CameraFile) -> CameraDesc {
-    CameraDesc { position: c.position.into(), look_at: c.look_at.into(), up: c.up.into(), vfov_degrees: c.vfov }
+/// A camera from the file, refused if it cannot form an image: a field of view outside
+/// (0°, 180°), a look-at point equal to the position, an up vector along the view direction.
+fn camera_desc(c: &CameraFile) -> Result<CameraDesc, String> {
+    let desc =
+        CameraDesc { position: c.position.into(), look_at: c.look_at.into(), up: c.up.into(), vfov_degrees: c.vfov };
+    if !(desc.vfov_degrees > 0.0 && desc.vfov_degrees < 180.0) {
+        return Err(format!("vfov {} must lie strictly between 0 and 180 degrees", desc.vfov_degrees));
+    }
+    let forward = desc.look_at - desc.position;
+    if !(forward.is_finite() && desc.up.is_finite()) {
+        return Err("position, look_at and up must be finite".into());
+    }
+    if forward.length_squared() == 0.0 {
+        return Err("look_at equals position: no view direction".into());
+    }
+    // Scaled before normalising, so that far-out cameras (refused later, by range) do not
+    // overflow here.
+    let unit = |v: Vec3| (v / v.abs().max_element()).normalize_or_zero();
+    let cross = unit(forward).cross(unit(desc.up));
+    if cross.length() < 1e-6 {
+        return Err("up is zero or parallel to the view direction".into());
+    }
+    Ok(desc)
 }
 
 /// Resolves a `file` entry: `{scenes}/...` against [`scenes_dir`], relative paths against the

@@ -209,6 +209,13 @@ impl Scene {
     pub fn check_range(&self, path: &std::path::Path) -> Result<(), crate::error::LoadError> {
         let within = |p: Vec3| p.abs().max_element() <= MAX_COORDINATE;
         let show = |p: Vec3| format!("({:.3e}, {:.3e}, {:.3e})", p.x, p.y, p.z);
+        // Bounds skip NaN coordinates (min and max ignore them), so look at every vertex.
+        for mesh in &self.meshes {
+            if let Some(p) = mesh.positions.iter().find(|p| !p.is_finite()) {
+                let message = format!("mesh {}: a vertex is not finite {} after its transform", mesh.name, show(*p));
+                return Err(crate::error::LoadError::new(path, message));
+            }
+        }
         let b = self.bounds();
         if !(b.is_empty() || within(b.min) && within(b.max)) {
             let message = format!(
