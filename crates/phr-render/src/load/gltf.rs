@@ -34,22 +34,23 @@ const MAX_INSTANCED_VERTICES: u64 = 1 << 27;
 
 /// The vertices `node` and its descendants instance (triangle primitives' POSITION counts,
 /// once per path through the hierarchy), memoised per node so that shared children cost
-/// nothing; saturating, and `u64::MAX` past [`MAX_DEPTH`] (a cycle).
-fn instanced_vertices(node: &Node, memo: &mut HashMap<usize, u64>, depth: usize) -> u64 {
+/// nothing; saturating. `None` past [`MAX_DEPTH`] (a cycle).
+fn instanced_vertices(node: &Node, memo: &mut HashMap<usize, u64>, depth: usize) -> Option<u64> {
     if depth > MAX_DEPTH {
-        return u64::MAX;
+        return None;
     }
     if let Some(&n) = memo.get(&node.index()) {
-        return n;
+        return Some(n);
     }
     let own = node.mesh().map_or(0, |m| {
         (m.primitives().filter(|p| p.mode() == Mode::Triangles))
             .filter_map(|p| p.get(&::gltf::Semantic::Positions))
             .fold(0u64, |sum, a| sum.saturating_add(a.count() as u64))
     });
-    let total = node.children().fold(own, |sum, c| sum.saturating_add(instanced_vertices(&c, memo, depth + 1)));
+    let total =
+        node.children().try_fold(own, |sum, c| Some(sum.saturating_add(instanced_vertices(&c, memo, depth + 1)?)))?;
     memo.insert(node.index(), total);
-    total
+    Some(total)
 }
 
 /// Parses a glTF or GLB file held in memory; external buffers are read from `base_dir`.
@@ -60,14 +61,18 @@ pub(super) fn parse(path: &Path, base_dir: &Path, bytes: &[u8]) -> Result<MeshDa
     let buffers: Vec<&[u8]> = buffers.iter().map(|data| &data[..]).collect();
     let scene = (document.default_scene().or_else(|| document.scenes().next()))
         .ok_or_else(|| LoadError::new(path, "glTF file has no scene"))?;
+    let mut memo = HashMap::new();
     let instanced =
-        scene.nodes().fold(0u64, |sum, n| sum.saturating_add(instanced_vertices(&n, &mut HashMap::new(), 0)));
-    if instanced > MAX_INSTANCED_VERTICES {
-        let message = format!(
-            "the node hierarchy instances {} vertices, more than {MAX_INSTANCED_VERTICES} (nodes sharing children multiply)",
-            if instanced == u64::MAX { "over 2^64".to_string() } else { instanced.to_string() }
-        );
-        return Err(LoadError::new(path, message));
+        scene.nodes().try_fold(0u64, |sum, n| Some(sum.saturating_add(instanced_vertices(&n, &mut memo, 0)?)));
+    match instanced {
+        None => return Err(LoadError::new(path, "node hierarchy too deep (or cyclic)")),
+        Some(n) if n > MAX_INSTANCED_VERTICES => {
+            let message = format!(
+                "the node hierarchy instances {n} vertices, more than {MAX_INSTANCED_VERTICES} (nodes sharing children multiply)"
+            );
+            return Err(LoadError::new(path, message));
+        }
+        Some(_) => {}
     }
     let animated = document.animations().next().is_some();
     let mut builder = Builder {
@@ -162,6 +167,7 @@ fn read_document(bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>), String> {
         ::gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| e.to_string())?;
     let json = document.into_json();
     check_position_accessors(&json)?;
+    check_animation_targets(&json)?;
     let document = Document::from_json(json).map_err(|e| e.to_string())?;
     Ok((document, blob))
 }
@@ -185,6 +191,23 @@ fn check_position_accessors(json: &::gltf::json::Root) -> Result<(), String> {
             let index = primitive.attributes.get(&semantic).map(|index| index.value());
             if index.is_some_and(|index| index >= json.accessors.len()) {
                 return Err(format!("mesh {m}, primitive {p}: POSITION accessor out of range"));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The `gltf` crate's validation skips animation channel targets (gltf-json 1.4), and reading
+/// an unknown `path` or an out-of-range `node` then panics; found by the loader fuzz test.
+fn check_animation_targets(json: &::gltf::json::Root) -> Result<(), String> {
+    for (a, animation) in json.animations.iter().enumerate() {
+        for (c, channel) in animation.channels.iter().enumerate() {
+            let target = &channel.target;
+            if !matches!(target.path, ::gltf::json::validation::Checked::Valid(_)) {
+                return Err(format!("animation {a}, channel {c}: unknown target path"));
+            }
+            if target.node.value() >= json.nodes.len() {
+                return Err(format!("animation {a}, channel {c}: target node out of range"));
             }
         }
     }

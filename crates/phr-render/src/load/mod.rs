@@ -114,17 +114,28 @@ impl Format {
 ///
 /// Every error names the file, and the line for text formats.
 pub fn load_mesh(path: &Path) -> Result<MeshData, LoadError> {
+    detect_format(path)?;
+    parse_mesh(path, &input::read_file(path, "the mesh file")?)
+}
+
+/// [`load_mesh`] on the file's content, already read: `path` names the format (by its
+/// extension), the file in errors, and the folder its MTL and buffer files are looked up in.
+/// What the loaders' fuzz tests call.
+pub fn parse_mesh(path: &Path, bytes: &[u8]) -> Result<MeshData, LoadError> {
     let (format, gzipped) = detect_format(path)?;
-    let mut bytes = input::read_file(path, "the mesh file")?;
-    if gzipped {
-        bytes = input::gunzip(path, &bytes)?;
-    }
+    let inflated;
+    let bytes = if gzipped {
+        inflated = input::gunzip(path, bytes)?;
+        &inflated[..]
+    } else {
+        bytes
+    };
     // Files an OBJ or glTF refers to (MTL, .bin buffers) are looked up next to the file.
     let base_dir = path.parent().unwrap_or_else(|| Path::new(""));
     match format {
-        Format::Obj => obj::parse(path, base_dir, &bytes),
-        Format::Ply => ply::parse(path, &bytes),
-        Format::Gltf => gltf::parse(path, base_dir, &bytes),
+        Format::Obj => obj::parse(path, base_dir, bytes),
+        Format::Ply => ply::parse(path, bytes),
+        Format::Gltf => gltf::parse(path, base_dir, bytes),
     }
 }
 

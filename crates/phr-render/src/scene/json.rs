@@ -469,14 +469,14 @@ impl SceneBuilder<'_> {
             if x.is_finite() && x >= MIN_PERIOD {
                 Ok(x)
             } else {
-                Err(bad(&format!("{what} {x} must be at least {MIN_PERIOD:e}")))
+                Err(bad(&format!("{what} {x:e} must be at least {MIN_PERIOD:e}")))
             }
         };
         let amount = |x: f32, what: &str| {
             if x.is_finite() && x.abs() <= super::MAX_COORDINATE {
                 Ok(x)
             } else {
-                Err(bad(&format!("{what} {x} must be finite and at most {:e}", super::MAX_COORDINATE)))
+                Err(bad(&format!("{what} {x:e} must be finite and at most {:e}", super::MAX_COORDINATE)))
             }
         };
         let amounts = |v: [f32; 3], what: &str| -> Result<Vec3, LoadError> {
