@@ -33,8 +33,10 @@ pub struct TriangleHit {
 }
 
 /// Möller–Trumbore. Returns a hit with `ray.tmin < t <= ray.tmax` (inclusive at the far end,
-/// so a caller can break ties between hits at equal distance), both faces counted.
-/// Degenerate (zero-area) triangles have a zero determinant and are never hit.
+/// so a caller can break ties between hits at equal distance) and `t` finite, both faces
+/// counted. Degenerate (zero-area) triangles have a zero determinant and are never hit. (A
+/// `t` that overflows to infinity, as with coordinates near f32's limit, is no hit: the
+/// builder fuzz test found the trees, rightly, never reaching one.)
 #[inline(always)]
 pub fn intersect_triangle(ray: &Ray, v0: Vec3, v1: Vec3, v2: Vec3) -> Option<TriangleHit> {
     intersect_triangle_edges(ray, v0, v1 - v0, v2 - v0)
@@ -63,7 +65,7 @@ pub fn intersect_triangle_edges(ray: &Ray, v0: Vec3, e1: Vec3, e2: Vec3) -> Opti
         return None;
     }
     let t = e2.dot(q) * inv_det;
-    if t > ray.tmin && t <= ray.tmax {
+    if t > ray.tmin && t <= ray.tmax && t < f32::INFINITY {
         Some(TriangleHit { t, u, v })
     } else {
         None

@@ -219,7 +219,10 @@ mod sse {
                 _mm_cmpgt_ps(add(u, v), add(add(_mm_set1_ps(1.0), tol_u), tol_v)),
             );
             let t = mul(dot(e2x, e2y, e2z, qx, qy, qz), inv_det);
-            let in_range = _mm_and_ps(_mm_cmpgt_ps(t, _mm_set1_ps(ray.tmin)), _mm_cmple_ps(t, _mm_set1_ps(ray.tmax)));
+            let in_range = _mm_and_ps(
+                _mm_and_ps(_mm_cmpgt_ps(t, _mm_set1_ps(ray.tmin)), _mm_cmple_ps(t, _mm_set1_ps(ray.tmax))),
+                _mm_cmplt_ps(t, _mm_set1_ps(f32::INFINITY)),
+            );
             let hit = _mm_andnot_ps(outside, _mm_and_ps(valid, in_range));
             let (mut ta, mut ua, mut va) = ([0.0f32; 4], [0.0f32; 4], [0.0f32; 4]);
             _mm_storeu_ps(ta.as_mut_ptr(), t);
