@@ -40,6 +40,21 @@ pub struct SurfacePoint {
     pub offset: f32,
 }
 
+/// What [`Geometry::memory`] counts, in bytes.
+#[derive(Clone, Copy, Debug)]
+pub struct GeometryMemory {
+    pub triangles: usize,
+    pub boxes: usize,
+    pub tree: usize,
+    pub wide: usize,
+}
+
+impl GeometryMemory {
+    pub fn total(&self) -> usize {
+        self.triangles + self.boxes + self.tree + self.wide
+    }
+}
+
 pub struct Geometry {
     pub triangles: Vec<[Vec3; 3]>,
     pub triangle_material: Vec<u32>,
@@ -112,6 +127,25 @@ impl Geometry {
         self.wide.rebuild(&bvh);
         self.packed.repack(&self.wide.prim_indices, &self.triangles);
         self.bvh = bvh;
+    }
+
+    /// Bytes held, by part: the triangles (vertices and material indices), the primitive
+    /// boxes, the builder's tree (nodes, leaf order, parents), and what the renderer traces
+    /// (the wide tree and the packed triangles). Capacities, not lengths: what is allocated.
+    pub fn memory(&self) -> GeometryMemory {
+        use std::mem::size_of;
+        let bytes = |capacity: usize, size: usize| capacity * size;
+        GeometryMemory {
+            triangles: bytes(self.triangles.capacity(), size_of::<[Vec3; 3]>())
+                + bytes(self.triangle_material.capacity(), size_of::<u32>()),
+            boxes: bytes(self.boxes.capacity(), size_of::<Aabb>()),
+            tree: bytes(self.bvh.nodes.capacity(), size_of::<phr_bvh::Node>())
+                + bytes(self.bvh.prim_indices.capacity(), size_of::<u32>())
+                + bytes(self.bvh.parents.capacity(), size_of::<u32>()),
+            wide: bytes(self.wide.nodes.capacity(), size_of::<phr_bvh::wide::WideNode<WIDTH>>())
+                + bytes(self.wide.prim_indices.capacity(), size_of::<u32>())
+                + bytes(self.packed.blocks.capacity(), size_of::<phr_bvh::wide::triangles::TriangleBlock>()),
+        }
     }
 
     /// The builder's tree.

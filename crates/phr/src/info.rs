@@ -53,6 +53,20 @@ pub fn run(args: &InfoArgs) -> Result<()> {
         sah_cost(geometry.bvh(), SahConstants::UNIT),
         sah_cost(geometry.bvh(), SahConstants::THESIS)
     );
+    let mem = geometry.memory();
+    let per_triangle = |bytes: usize| bytes as f64 / geometry.prim_count().max(1) as f64;
+    let mb = |bytes: usize| bytes as f64 / (1 << 20) as f64;
+    println!(
+        "memory      {:.1} MB: triangles {:.1}, boxes {:.1}, tree {:.1}, wide tree + packed triangles {:.1} \
+         ({:.0} B/primitive; tree + wide + triangles {:.0} B)",
+        mb(mem.total()),
+        mb(mem.triangles),
+        mb(mem.boxes),
+        mb(mem.tree),
+        mb(mem.wide),
+        per_triangle(mem.total()),
+        per_triangle(mem.tree + mem.wide + mem.triangles)
+    );
     match validate(geometry.bvh(), &geometry.boxes, builder.max_leaf_size()) {
         Ok(()) => println!("invariants  ok"),
         Err(e) => {
