@@ -210,11 +210,7 @@ fn linear_rotation_is_slerp_at_constant_angular_speed() {
         for s in [0.25, 0.7] {
             let q = f64s(track.sample(1.0 + 2.0 * s as f32).to_array());
             let angle = angle_degrees(q);
-            assert!(
-                (angle - 120.0 * s as f64).abs() < 0.01,
-                "s = {s}: turned {angle:.3}° of 120°, expected {}°",
-                120.0 * s
-            );
+            assert!((angle - 120.0 * s).abs() < 0.01, "s = {s}: turned {angle:.3}° of 120°, expected {}°", 120.0 * s);
             // About the same axis (sign-independent).
             let v = Vec3::new(q[0] as f32, q[1] as f32, q[2] as f32).normalize();
             assert!(v.dot(axis).abs() > 1.0 - 1e-5, "s = {s}: axis {v}");
