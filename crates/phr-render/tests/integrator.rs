@@ -18,13 +18,12 @@
 use glam::Vec3;
 use phr_bvh::sphere::Sphere;
 use phr_bvh::Builder;
-use phr_render::camera::{Camera, CameraDesc};
+use phr_render::camera::CameraDesc;
 use phr_render::geometry::Geometry;
-use phr_render::integrator::PathTracer;
 use phr_render::lights::LightSet;
 use phr_render::material::Material;
 use phr_render::render::Renderer;
-use phr_render::scene::{Background, Mesh, Scene, SphereObject};
+use phr_render::scene::{Background, Mesh, RenderSettings, Scene, SphereObject};
 
 const SIZE: u32 = 32;
 
@@ -34,19 +33,9 @@ fn render(scene: &Scene, view: &CameraDesc, max_depth: u32, nee: bool, frames: u
     let mut geometry = Geometry::new(scene);
     geometry.build(|b| Builder::default().build(b));
     let lights = nee.then(|| LightSet::new(&geometry, &scene.materials));
-    let renderer = Renderer {
-        tracer: PathTracer {
-            geometry: &geometry,
-            materials: &scene.materials,
-            background: &scene.background,
-            max_depth,
-            lights: lights.as_ref(),
-        },
-        camera: Camera::new(view, SIZE, SIZE),
-        width: SIZE,
-        height: SIZE,
-        seed: u64::from(max_depth) + 100 * u64::from(nee),
-    };
+    let settings = RenderSettings { width: SIZE, height: SIZE, spp: frames, max_depth };
+    let renderer = Renderer::new(scene, &geometry, view, &settings, lights.as_ref())
+        .with_seed(u64::from(max_depth) + 100 * u64::from(nee));
     let (mut sum, mut sum_sq, mut n) = ([0.0f64; 3], [0.0f64; 3], 0.0);
     for frame in 0..frames {
         for p in renderer.render_frame(frame).0 {
