@@ -1,128 +1,185 @@
-//! `phr view --headless`: the viewer's frame loop runs without a window, records per-frame
-//! timings and writes frames; animated objects change the image, a paused scene accumulates.
+//! `phr view --headless`: the viewer's frame loop runs without a window, on a fixed clock, and
+//! its frames.csv is right: time advances by exactly `--dt` per playing frame and stays put
+//! when paused; rays match the image size; the SAH cost is finite, positive and follows the
+//! motion; PHR's Σ|cut| is positive; the stages fit in the frame time; RSS and peak RSS are
+//! sane. Animated objects change the image, a paused scene accumulates, and in the default
+//! mode (colour, explicit light sampling) a moving light changes the lighting.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn scene(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/dynamic").join(name)
+use common::{mean_abs_diff, phr_ok, repo_path, Image, Table, TempDir};
+use std::time::Duration;
+
+/// Runs `phr --threads 2 view --headless --out OUT ARGS...` in `dir`.
+fn run_headless(dir: &TempDir, out: &str, args: &[impl AsRef<str>]) -> Table {
+    let mut all = vec!["--threads", "2", "view", "--headless", "--out", out];
+    all.extend(args.iter().map(|a| a.as_ref()));
+    phr_ok(&dir.0, &all, Duration::from_secs(300));
+    Table::read(&dir.join(out).join("frames.csv"))
 }
 
-fn run_headless(out: &Path, extra: &[&str]) {
-    let _ = std::fs::remove_dir_all(out);
-    let output = Command::new(env!("CARGO_BIN_EXE_phr"))
-        .args(["--threads", "2", "view", "--headless", "--frames", "100", "--width", "48", "--height", "48"])
-        .arg(scene("carousel.json"))
-        .arg("--out")
-        .arg(out)
-        .args(extra)
-        .output()
-        .unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+fn frame(dir: &TempDir, out: &str, i: usize) -> Vec<f32> {
+    Image::png(&dir.join(out).join(format!("frame{i:05}.png"))).rgb
 }
 
-fn pixels(path: &Path) -> Vec<f32> {
-    image::open(path)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .to_rgb8()
-        .into_raw()
-        .into_iter()
-        .map(f32::from)
-        .collect()
+/// Checks that hold for every run: the clock, rays, SAH and build costs, stage times, memory.
+/// `rays_per_pixel` bounds the rays of one frame, in units of width × height.
+fn check_frames(csv: &Table, dt: f64, playing: bool, pixels: f64, rays_per_pixel: (f64, f64)) {
+    for r in 0..csv.rows.len() {
+        let n = |c: &str| csv.num(r, c);
+        assert_eq!(n("frame"), r as f64);
+        // The fixed clock: time advances before the frame is rendered.
+        let time = if playing { (r + 1) as f64 * dt } else { 0.0 };
+        assert!((n("time_s") - time).abs() < 2e-4, "frame {r}: time_s {} should be {time}", n("time_s"));
+        if r > 0 && playing {
+            let step = n("time_s") - csv.num(r - 1, "time_s");
+            assert!((step - dt).abs() < 2e-4, "frame {r}: time advanced by {step}, not --dt {dt}");
+        }
+        let rays = n("rays");
+        let (lo, hi) = (rays_per_pixel.0 * pixels, rays_per_pixel.1 * pixels);
+        assert!(rays >= lo && rays <= hi, "frame {r}: {rays} rays, expected {lo} to {hi}");
+        // Mrays/s from the rays and the render time, the latter rounded to 0.001 ms.
+        let mrays = rays / n("render_ms") / 1e3;
+        let tolerance = 1e-3 + mrays * 6e-4 / n("render_ms");
+        assert!((n("mrays_per_s") - mrays).abs() <= tolerance, "frame {r}: Mrays/s {} vs {mrays}", n("mrays_per_s"));
+        assert!(n("sah_cost") > 0.0, "frame {r}: SAH cost {}", n("sah_cost"));
+        assert!(n("build_cost") > 0.0, "frame {r}: PHR's Σ|cut| is {}", n("build_cost"));
+        let stages: f64 = ["pose_ms", "refit_ms", "build_ms", "wide_ms", "render_ms"].iter().map(|c| n(c)).sum();
+        assert!(n("frame_ms") >= stages - 0.01, "frame {r}: stages {stages} ms exceed the frame {}", n("frame_ms"));
+        let (rss, peak) = (n("rss_mib"), n("peak_rss_mib"));
+        assert!(rss > 0.0 && peak >= rss, "frame {r}: RSS {rss} MiB, peak {peak} MiB");
+    }
 }
 
-fn mean_abs_diff(a: &[f32], b: &[f32]) -> f32 {
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.len() as f32
+/// Carousel in normals mode at 48², `--dt 0.05`, and extra arguments.
+fn carousel_args(extra: &[&str]) -> Vec<String> {
+    let carousel = repo_path("scenes/dynamic/carousel.json").to_str().unwrap().to_string();
+    let args = ["--frames", "100", "--width", "48", "--height", "48", "--dt", "0.05", "--mode", "normals"];
+    args.iter().chain(extra).map(|s| s.to_string()).chain([carousel]).collect()
 }
 
-struct Row {
-    moved: bool,
-    refit_ms: f64,
-    build_ms: f64,
-    render_ms: f64,
-    frame_ms: f64,
-    samples: u32,
-}
-
-fn rows(out: &Path) -> Vec<Row> {
-    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
-    let mut lines = csv.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
-    lines
-        .map(|l| {
-            let f: Vec<&str> = l.split(',').collect();
-            Row {
-                moved: f[col("moved")] == "1",
-                refit_ms: f[col("refit_ms")].parse().unwrap(),
-                build_ms: f[col("build_ms")].parse().unwrap(),
-                render_ms: f[col("render_ms")].parse().unwrap(),
-                frame_ms: f[col("frame_ms")].parse().unwrap(),
-                samples: f[col("samples")].parse().unwrap(),
-            }
-        })
-        .collect()
+/// Distinct values of a column.
+fn distinct(csv: &Table, column: &str) -> usize {
+    let mut v = csv.nums(column);
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    v.len()
 }
 
 #[test]
 fn animated_frames_are_timed_and_change() {
-    let base = std::env::temp_dir().join(format!("phr-view-headless-{}", std::process::id()));
-    let animated = base.join("animated");
-    let paused = base.join("paused");
-    // Normals mode: the image depends on geometry only, up to anti-aliasing noise at edges.
-    run_headless(&animated, &["--mode", "normals"]);
-    run_headless(&paused, &["--mode", "normals", "--paused"]);
+    let dir = TempDir::new("view-headless");
+    // Normals mode: the image depends on geometry only, up to anti-aliasing noise at edges,
+    // and every pixel traces exactly one ray.
+    let moving = run_headless(&dir, "animated", &carousel_args(&[]));
+    let still = run_headless(&dir, "paused", &carousel_args(&["--paused"]));
+    let pixels = 48.0 * 48.0;
 
-    let moving = rows(&animated);
-    assert_eq!(moving.len(), 100);
-    for (i, r) in moving.iter().enumerate() {
-        assert!(r.moved, "frame {i} did not move");
-        assert!(r.refit_ms > 0.0 && r.build_ms > 0.0 && r.render_ms > 0.0, "frame {i} lacks timings");
-        assert!(r.frame_ms >= r.refit_ms + r.build_ms + r.render_ms - 0.01, "frame {i}: stages exceed the frame");
-        assert_eq!(r.samples, 1, "an animated frame restarts accumulation");
+    assert_eq!(moving.rows.len(), 100);
+    check_frames(&moving, 0.05, true, pixels, (1.0, 1.0));
+    for r in 0..moving.rows.len() {
+        let n = |c: &str| moving.num(r, c);
+        assert_eq!(moving.str(r, "moved"), "1", "frame {r} did not move");
+        assert!(n("refit_ms") > 0.0 && n("build_ms") > 0.0 && n("render_ms") > 0.0, "frame {r} lacks timings");
+        assert_eq!(n("samples"), 1.0, "an animated frame restarts accumulation");
     }
-    let still = rows(&paused);
-    assert!(still.iter().skip(1).all(|r| !r.moved && r.build_ms == 0.0), "a paused scene keeps its tree");
-    assert_eq!(still.last().unwrap().samples, 100, "a paused scene accumulates");
-    assert!(animated.join("frame00099.png").is_file());
+    assert!(distinct(&moving, "sah_cost") > 50, "the SAH cost follows the motion: {:?}", moving.nums("sah_cost"));
 
-    let motion = mean_abs_diff(&pixels(&animated.join("frame00000.png")), &pixels(&animated.join("frame00050.png")));
-    let noise = mean_abs_diff(&pixels(&paused.join("frame00000.png")), &pixels(&paused.join("frame00050.png")));
+    check_frames(&still, 0.05, false, pixels, (1.0, 1.0));
+    for r in 1..still.rows.len() {
+        assert!(
+            still.str(r, "moved") == "0" && still.num(r, "build_ms") == 0.0,
+            "frame {r}: a paused scene keeps its tree"
+        );
+    }
+    assert_eq!(still.num(99, "samples"), 100.0, "a paused scene accumulates");
+    assert_eq!((distinct(&still, "sah_cost"), distinct(&still, "build_cost")), (1, 1), "a kept tree keeps its costs");
+
+    let motion = mean_abs_diff(&frame(&dir, "animated", 0), &frame(&dir, "animated", 50));
+    let noise = mean_abs_diff(&frame(&dir, "paused", 0), &frame(&dir, "paused", 50));
     assert!(motion > 8.0 && motion > 2.5 * noise, "moving objects change the image: {motion} vs noise {noise}");
-    std::fs::remove_dir_all(&base).unwrap();
+    assert!(dir.join("animated/frame00099.png").is_file());
+}
+
+/// A floor lit by a small light (one-sided, facing down) that swings 1.5 units sideways with
+/// a period of 2 s. The camera sits under the light looking down: it sees only the floor, so
+/// the image changes only through the lighting. A ball swings high above, unlit and out of
+/// sight: the scene is animated even if the light failed to move.
+const SWINGING_LIGHT: &str = r#"{
+  "max_depth": 2,
+  "background": [0, 0, 0],
+  "materials": {
+    "floor": { "type": "lambertian", "albedo": 0.7 },
+    "lamp": { "type": "emissive", "emit": 20 }
+  },
+  "camera": { "position": [0, 0.8, 0], "look_at": [0, 0, 0], "up": [0, 0, -1], "vfov": 90 },
+  "objects": [
+    { "type": "quad", "Q": [-3, 0, -3], "u": [0, 0, 6], "v": [6, 0, 0], "material": "floor" },
+    { "type": "quad", "Q": [-0.2, 1, -0.2], "u": [0.4, 0, 0], "v": [0, 0, 0.4], "material": "lamp",
+      "animate": { "type": "oscillate", "amplitude": [1.5, 0, 0], "period": 2 } },
+    { "type": "sphere", "center": [0, 5, 0], "radius": 0.1, "material": "floor",
+      "animate": { "type": "oscillate", "amplitude": [0, 0, 1], "period": 2 } }
+  ]
+}"#;
+
+#[test]
+fn moving_light_changes_the_lighting_in_the_default_mode() {
+    let dir = TempDir::new("view-light");
+    dir.write("light.json", SWINGING_LIGHT);
+    // Default mode: colour with explicit light sampling. Frame 9 is at t = 0.5 s, a quarter period.
+    let args = ["light.json", "--frames", "10", "--width", "32", "--height", "32", "--dt", "0.05"];
+    let moving = run_headless(&dir, "moving", &args);
+    let still = run_headless(&dir, "paused", &[&args[..], &["--paused"]].concat());
+    // Two segments per path (max_depth 2) and a shadow ray between them at most.
+    check_frames(&moving, 0.05, true, 32.0 * 32.0, (1.0, 3.0));
+    check_frames(&still, 0.05, false, 32.0 * 32.0, (1.0, 3.0));
+
+    let lit = |out: &str, i: usize| -> f32 {
+        let f = frame(&dir, out, i);
+        f.iter().sum::<f32>() / f.len() as f32
+    };
+    assert!(lit("paused", 0) > 20.0, "the floor under the light is lit: mean {}", lit("paused", 0));
+    let motion = mean_abs_diff(&frame(&dir, "moving", 0), &frame(&dir, "moving", 9));
+    // Paused frames 0 and 1 are 1 and 2 samples: their difference is half that of two 1-spp images.
+    let noise = 2.0 * mean_abs_diff(&frame(&dir, "paused", 0), &frame(&dir, "paused", 1));
+    assert!(motion > 5.0 && motion > 3.0 * noise, "the light moved: image change {motion}, 1-spp noise {noise}");
+}
+
+/// The peak RSS column is a peak: it never falls from one frame to the next.
+#[test]
+#[ignore = "bug: peak_rss_mib is /proc's VmHWM as read each frame, and Linux lets that fall \
+            (e.g. 17.6 -> 17.4 MiB on frame 9 here): the CSV and the summary's peak should be a running maximum"]
+fn peak_rss_never_falls() {
+    let dir = TempDir::new("view-peak-rss");
+    let csv = run_headless(&dir, "out", &carousel_args(&[]));
+    let peaks = csv.nums("peak_rss_mib");
+    for (r, pair) in peaks.windows(2).enumerate() {
+        assert!(pair[1] >= pair[0], "frame {}: peak RSS fell from {} to {} MiB", r + 1, pair[0], pair[1]);
+    }
+}
+
+fn expect_fallback(display: Option<&str>, frames: usize, message: &str) {
+    let dir = TempDir::new(&format!("view-fallback-{frames}"));
+    let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_phr"));
+    command.args(["view", "--frames", &frames.to_string(), "--width", "16", "--height", "16", "--out", "out"]);
+    command.current_dir(&dir.0).env_remove("WAYLAND_DISPLAY");
+    match display {
+        Some(d) => command.env("DISPLAY", d),
+        None => command.env_remove("DISPLAY"),
+    };
+    let output = command.output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(stderr.contains(message), "{stderr}");
+    assert_eq!(Table::read(&dir.join("out/frames.csv")).rows.len(), frames);
 }
 
 #[test]
 fn no_display_falls_back_to_headless() {
-    let out = std::env::temp_dir().join(format!("phr-view-nodisplay-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
-    let output = Command::new(env!("CARGO_BIN_EXE_phr"))
-        .args(["view", "--frames", "3", "--width", "16", "--height", "16", "--out"])
-        .arg(&out)
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-    assert!(String::from_utf8_lossy(&output.stderr).contains("no display"));
-    assert_eq!(rows(&out).len(), 3);
-    std::fs::remove_dir_all(&out).unwrap();
+    expect_fallback(None, 3, "no display");
 }
 
 #[test]
 fn unusable_display_falls_back_to_headless() {
-    let out = std::env::temp_dir().join(format!("phr-view-baddisplay-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
-    let output = Command::new(env!("CARGO_BIN_EXE_phr"))
-        .args(["view", "--frames", "2", "--width", "16", "--height", "16", "--out"])
-        .arg(&out)
-        .env("DISPLAY", ":64999")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(output.status.success(), "{stderr}");
-    assert!(stderr.contains("cannot open a window"), "{stderr}");
-    assert_eq!(rows(&out).len(), 2);
-    std::fs::remove_dir_all(&out).unwrap();
+    expect_fallback(Some(":64999"), 2, "cannot open a window");
 }
