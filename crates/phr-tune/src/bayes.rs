@@ -217,4 +217,41 @@ mod tests {
         );
         assert!(obs.len() < 20 && !obs.is_empty(), "{} evaluations", obs.len());
     }
+
+    /// The time budget bounds the run: it may only finish the iteration (GP fit and
+    /// evaluation) under way when the budget runs out, so the whole run takes at most the
+    /// budget plus the longest iteration, measured here, plus slack for the machine.
+    #[test]
+    fn time_budget_bounds_the_overrun() {
+        let budget = Duration::from_millis(300);
+        let mut ends = Vec::new();
+        let start = Instant::now();
+        let obs = minimize(
+            |x| {
+                std::thread::sleep(Duration::from_millis(20));
+                ends.push(Instant::now());
+                x[0] + x[1]
+            },
+            [0.0, 0.0],
+            [1.0, 1.0],
+            &[],
+            &BoOptions { budget: 40, time_budget: Some(budget), ..Default::default() },
+        );
+        let elapsed = start.elapsed();
+        let longest = std::iter::once(start)
+            .chain(ends.iter().copied())
+            .collect::<Vec<_>>()
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .max()
+            .expect("at least one evaluation");
+        let slack = Duration::from_millis(100);
+        assert_eq!(obs.len(), ends.len());
+        assert!(obs.len() < 40, "{} evaluations: the 300 ms budget did not stop 40 × 20 ms", obs.len());
+        assert!(
+            elapsed <= budget + longest + slack,
+            "took {elapsed:?}: more than the {budget:?} budget + the longest iteration {longest:?} + {slack:?}"
+        );
+        assert!(elapsed >= budget, "stopped after {elapsed:?}, before the {budget:?} budget ran out");
+    }
 }
