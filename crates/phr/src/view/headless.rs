@@ -56,7 +56,10 @@ fn frames(args: &ViewArgs, pipeline: &mut FramePipeline, csv: &mut impl Write) -
             write_image(&path, width, height, &pipeline.image())
                 .with_context(|| format!("writing {}", path.display()))?;
         }
-        let (rss, peak) = memory_mib();
+        // The kernel's high-water mark (VmHWM) can fall between reads (seen: 17.6 -> 17.4
+        // MiB), so the peak column is the running maximum of what was read.
+        let (rss, hwm) = memory_mib();
+        let peak = hwm.max(rss).max(summary.peak_rss_at_end);
         writeln!(
             csv,
             "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{:.1},{:.1}",
