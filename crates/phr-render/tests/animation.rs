@@ -218,20 +218,6 @@ fn linear_rotation_is_slerp_at_constant_angular_speed() {
     }
 }
 
-/// Standard base64 with padding, for a data URI.
-fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for chunk in bytes.chunks(3) {
-        let word = chunk.iter().enumerate().fold(0u32, |w, (i, &b)| w | u32::from(b) << (16 - 8 * i));
-        for i in 0..4 {
-            let sextet = (word >> (18 - 6 * i)) & 63;
-            out.push(if i <= chunk.len() { ALPHABET[sextet as usize] as char } else { '=' });
-        }
-    }
-    out
-}
-
 #[test]
 fn gltf_cubic_translation_and_slerped_rotation_off_the_midpoint() {
     // One node holding a triangle with corners at its origin and at +x, animated from t = 0.5
@@ -250,7 +236,7 @@ fn gltf_cubic_translation_and_slerped_rotation_off_the_midpoint() {
         .chain(rotation.into_iter().flatten());
     floats.for_each(|f| buffer.extend_from_slice(&f.to_le_bytes()));
     assert_eq!(buffer.len(), 148);
-    let uri = format!("data:application/octet-stream;base64,{}", base64(&buffer));
+    let uri = format!("data:application/octet-stream;base64,{}", base64::encode(&buffer));
     let gltf = format!(
         r#"{{
   "asset": {{"version": "2.0"}},
