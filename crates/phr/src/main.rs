@@ -5,6 +5,7 @@ mod animate;
 mod bench;
 mod bench_build;
 mod bench_cut_cost;
+mod bench_frame;
 mod bench_rays;
 mod bench_tune;
 mod info;
@@ -37,6 +38,8 @@ enum Command {
     Bench(bench::BenchArgs),
     /// Benchmark BVH construction and ray tracing on the shared scenes.
     BenchBuild(bench_build::BenchBuildArgs),
+    /// The thesis's frame on the suite, ours against Mitsuba 3 (llvm variant) in one run.
+    BenchFrame(bench_frame::BenchFrameArgs),
     /// Ray throughput: binary vs wide (SIMD) BVH traversal vs Embree, on the shared scenes.
     BenchRays(bench_rays::BenchRaysArgs),
     /// Correlation of PHR's build cost Σ|cut| with its build time over a sweep of α and δ.
@@ -65,6 +68,7 @@ fn main() -> ExitCode {
         Some(Command::Info(args)) => info::run(&args),
         Some(Command::Bench(args)) => bench::run(&args),
         Some(Command::BenchBuild(args)) => bench_build::run(&args),
+        Some(Command::BenchFrame(args)) => bench_frame::run(&args),
         Some(Command::BenchRays(args)) => bench_rays::run(&args),
         Some(Command::BenchCutCost(args)) => bench_cut_cost::run(&args),
         Some(Command::Animate(args)) => animate::run(&args),

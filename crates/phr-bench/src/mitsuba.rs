@@ -1,0 +1,189 @@
+//! The peer of the frame benchmark: Mitsuba 3 rendering the thesis's frame with the same
+//! estimator as ours, through `shared/reference/tools/render_reference.py`.
+//!
+//! The script reads our scene JSON format; it renders with the `rtiow` integrator (pure BSDF
+//! sampling, implicit lights, no Russian roulette: our estimator) in the `llvm_ad_rgb`
+//! variant, Mitsuba's fast CPU variant, which JIT-compiles the whole frame for the CPU's
+//! SIMD width. Its first pass includes the compilation, so only the warm passes are timed
+//! (one 1-spp pass per frame). The variant needs libLLVM ≥ 17: `apt-get install libllvm19`
+//! and `DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so` (set here when that file
+//! exists and the variable is not). Mitsuba itself: `python3 -m pip install mitsuba numpy`.
+//!
+//! A missing Python, package or library is not an error of the benchmark: the result says
+//! it was skipped and why.
+
+use anyhow::{Context, Result};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The variant measured: the fast one. Anything else is reported as skipped, never
+/// silently compared.
+pub const VARIANT: &str = "llvm_ad_rgb";
+
+/// Where Debian's `libllvm19` puts the library drjit needs.
+pub const DEBIAN_LIBLLVM: &str = "/usr/lib/x86_64-linux-gnu/libLLVM-19.so";
+
+/// Mitsuba's timing of one scene at one resolution.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct MitsubaFrame {
+    pub variant: String,
+    pub integrator: String,
+    /// Mean wall-clock ms of the warm 1-spp passes.
+    pub warm_ms: f64,
+    /// The first pass (JIT compilation included), in ms.
+    pub first_ms: f64,
+    pub frames: usize,
+}
+
+/// Mitsuba's result, or why it did not run.
+#[derive(Clone, Debug, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MitsubaRun {
+    Ran(MitsubaFrame),
+    Skipped(String),
+}
+
+/// The script and the folder its scenes' `{scenes}` paths point to.
+#[derive(Clone, Debug)]
+pub struct MitsubaPeer {
+    pub python: String,
+    pub tool: PathBuf,
+    pub scenes_dir: PathBuf,
+}
+
+impl MitsubaPeer {
+    /// The peer next to the shared scenes folder `scenes_dir` (`../reference/tools`).
+    pub fn next_to(scenes_dir: &Path) -> Self {
+        Self {
+            python: std::env::var("PYTHON").unwrap_or_else(|_| "python3".into()),
+            tool: scenes_dir.join("../reference/tools/render_reference.py"),
+            scenes_dir: scenes_dir.to_path_buf(),
+        }
+    }
+
+    /// Renders `frames` warm 1-spp frames (plus the JIT pass) of the scene file's first view
+    /// in the thesis's setting at `res`², on `threads` threads; scratch files go to `work`.
+    pub fn thesis_frames(&self, scene_file: &Path, res: u32, frames: usize, threads: usize, work: &Path) -> MitsubaRun {
+        match self.try_thesis_frames(scene_file, res, frames, threads, work) {
+            Ok(run) => run,
+            Err(e) => MitsubaRun::Skipped(format!("{e:#}")),
+        }
+    }
+
+    fn try_thesis_frames(
+        &self,
+        scene_file: &Path,
+        res: u32,
+        frames: usize,
+        threads: usize,
+        work: &Path,
+    ) -> Result<MitsubaRun> {
+        if !self.tool.is_file() {
+            return Ok(MitsubaRun::Skipped(format!("{} not found", self.tool.display())));
+        }
+        let text = std::fs::read_to_string(scene_file).with_context(|| format!("reading {}", scene_file.display()))?;
+        let scene = thesis_frame_scene(serde_json::from_str(&text)?, res)
+            .with_context(|| format!("{} has no view", scene_file.display()))?;
+        std::fs::create_dir_all(work)?;
+        let name = crate::suite::scene_name(scene_file);
+        let local = work.join(format!("{name}_{res}_scene.json"));
+        std::fs::write(&local, serde_json::to_string_pretty(&scene)?)?;
+        let prefix = work.join(format!("{name}_{res}_mitsuba"));
+        let passes = (frames + 1).to_string();
+        let mut cmd = Command::new(&self.python);
+        cmd.arg(&self.tool).arg(&local).arg("-o").arg(&prefix);
+        cmd.args(["--variant", VARIANT, "--integrator", "rtiow", "--spp", &passes, "--passes", &passes]);
+        cmd.args(["--res", &format!("{res}x{res}"), "--threads", &threads.to_string(), "--quiet"]);
+        cmd.arg("--scenes-dir").arg(&self.scenes_dir);
+        if std::env::var_os("DRJIT_LIBLLVM_PATH").is_none() && Path::new(DEBIAN_LIBLLVM).is_file() {
+            cmd.env("DRJIT_LIBLLVM_PATH", DEBIAN_LIBLLVM);
+        }
+        let out = match cmd.output() {
+            Ok(out) => out,
+            Err(e) => return Ok(MitsubaRun::Skipped(format!("cannot run {}: {e}", self.python))),
+        };
+        if !out.status.success() {
+            let err = String::from_utf8_lossy(&out.stderr);
+            let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("no message");
+            return Ok(MitsubaRun::Skipped(format!("render_reference.py failed: {}", last.trim())));
+        }
+        let meta: Value = serde_json::from_str(&std::fs::read_to_string(prefix.with_extension("json"))?)?;
+        Ok(parse_meta(&meta, frames))
+    }
+}
+
+/// The scene JSON Mitsuba renders: the file's first view as its camera, `res`², and the
+/// thesis's setting (every material diffuse 0.7, white sky, 6 segments, 1 spp). `None` if
+/// the file has neither a camera nor views.
+pub fn thesis_frame_scene(mut scene: Value, res: u32) -> Option<Value> {
+    let obj = scene.as_object_mut()?;
+    if !obj.contains_key("camera") {
+        let first = obj.get("views")?.as_object()?.values().next()?.clone();
+        obj.insert("camera".into(), first);
+    }
+    let albedo = crate::suite::THESIS_ALBEDO;
+    if let Some(materials) = obj.get_mut("materials").and_then(Value::as_object_mut) {
+        for m in materials.values_mut() {
+            *m = json!({"type": "lambertian", "albedo": [albedo, albedo, albedo]});
+        }
+    }
+    obj.insert("width".into(), json!(res));
+    obj.insert("height".into(), json!(res));
+    obj.insert("spp".into(), json!(1));
+    obj.insert("max_depth".into(), json!(crate::suite::THESIS_MAX_DEPTH));
+    obj.insert("background".into(), json!([1.0, 1.0, 1.0]));
+    Some(scene)
+}
+
+/// Reads the timings the script wrote; anything but the fast variant counts as skipped.
+fn parse_meta(meta: &Value, frames: usize) -> MitsubaRun {
+    let variant = meta["variant"].as_str().unwrap_or("unknown").to_string();
+    if variant != VARIANT {
+        return MitsubaRun::Skipped(format!("Mitsuba ran the {variant} variant, not {VARIANT}"));
+    }
+    let timings = &meta["timings"];
+    match (timings["ms_per_spp_warm"].as_f64(), timings["first_pass_s"].as_f64()) {
+        (Some(warm_ms), Some(first_s)) => MitsubaRun::Ran(MitsubaFrame {
+            variant,
+            integrator: meta["integrator"].as_str().unwrap_or("unknown").to_string(),
+            warm_ms,
+            first_ms: first_s * 1e3,
+            frames,
+        }),
+        _ => MitsubaRun::Skipped("render_reference.py wrote no warm timings".into()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thesis_scene_takes_the_first_view_and_the_thesis_setting() {
+        let file = json!({
+            "views": {"a": {"position": [1, 2, 3]}, "b": {"position": [4, 5, 6]}},
+            "materials": {"red": {"type": "metal", "albedo": [1, 0, 0]}},
+            "background": [0, 0, 0], "max_depth": 50, "width": 64, "height": 32
+        });
+        let s = thesis_frame_scene(file, 256).unwrap();
+        assert_eq!(s["camera"]["position"], json!([1, 2, 3]));
+        assert_eq!(s["materials"]["red"]["type"], "lambertian");
+        assert_eq!((s["width"].as_u64(), s["height"].as_u64()), (Some(256), Some(256)));
+        assert_eq!(s["max_depth"].as_u64(), Some(6));
+        assert!(thesis_frame_scene(json!({"materials": {}}), 256).is_none());
+    }
+
+    #[test]
+    fn only_the_llvm_variant_counts() {
+        let meta = |variant: &str| {
+            json!({"variant": variant, "integrator": "rtiow",
+                   "timings": {"ms_per_spp_warm": 40.0, "first_pass_s": 0.5}})
+        };
+        match parse_meta(&meta("llvm_ad_rgb"), 8) {
+            MitsubaRun::Ran(f) => assert_eq!((f.warm_ms, f.first_ms, f.frames), (40.0, 500.0, 8)),
+            MitsubaRun::Skipped(why) => panic!("skipped: {why}"),
+        }
+        assert!(matches!(parse_meta(&meta("scalar_rgb"), 8), MitsubaRun::Skipped(_)));
+    }
+}

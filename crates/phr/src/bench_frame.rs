@@ -1,0 +1,90 @@
+//! `phr bench-frame`: the thesis's frame (first view, 1 spp, 6 segments, white sky, diffuse)
+//! on the suite, ours against Mitsuba 3 `llvm_ad_rgb` with the same estimator, side by side
+//! in one run. The measuring lives in `phr_bench`; this parses arguments and prints.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use phr_bench::frame::time_frames;
+use phr_bench::frame_report::{markdown, write_frame_report, FrameRow, FrameRunInfo};
+use phr_bench::mitsuba::{MitsubaPeer, MitsubaRun};
+use phr_bench::suite::{load_thesis_scene, scene_name, suite_files, SUITE};
+use phr_bvh::Builder;
+use phr_render::geometry::Geometry;
+use phr_render::scene::RenderSettings;
+use std::path::PathBuf;
+
+#[derive(Args)]
+pub struct BenchFrameArgs {
+    /// Scene files (default: the suite in scenes/suite).
+    pub scenes: Vec<PathBuf>,
+    #[arg(long, value_delimiter = ',', default_value = "256,512")]
+    pub resolutions: Vec<u32>,
+    /// Timed frames per scene and resolution (after the warm-up).
+    #[arg(long, default_value_t = 16)]
+    pub frames: usize,
+    /// Untimed frames first (caches, page faults, thread pool start).
+    #[arg(long, default_value_t = 2)]
+    pub warmup: usize,
+    /// BVH builder of our renderer.
+    #[arg(long, default_value = "phr-hq")]
+    pub builder: Builder,
+    /// Leave Mitsuba 3 out.
+    #[arg(long)]
+    pub no_mitsuba: bool,
+    /// Output folder (frame.csv, frame.json, frame.md).
+    #[arg(long, default_value = "bench-frame")]
+    pub out: PathBuf,
+}
+
+pub fn run(args: &BenchFrameArgs) -> Result<()> {
+    if args.frames == 0 || args.resolutions.is_empty() || args.resolutions.contains(&0) {
+        bail!("need at least one frame and one non-zero resolution");
+    }
+    let files = if args.scenes.is_empty() { suite_files(SUITE)? } else { args.scenes.clone() };
+    let threads = rayon::current_num_threads();
+    let peer = (!args.no_mitsuba)
+        .then(|| phr_render::scene::json::scenes_dir(&files[0]).map(|dir| MitsubaPeer::next_to(&dir)).ok_or(()));
+    let progress = ProgressBar::new((files.len() * args.resolutions.len()) as u64);
+    progress.set_style(
+        ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg} (elapsed {elapsed})")
+            .expect("template")
+            .progress_chars("=> "),
+    );
+    let mut rows = Vec::new();
+    for file in &files {
+        let scene = load_thesis_scene(file)?;
+        let view = scene.view(None).with_context(|| format!("{} has no view", file.display()))?;
+        let mut geometry = Geometry::new(&scene);
+        geometry.build(|boxes| args.builder.build(boxes));
+        for &res in &args.resolutions {
+            let name = scene_name(file);
+            progress.set_message(format!("{name} {res}²: ours"));
+            let settings = RenderSettings { width: res, height: res, spp: 1, max_depth: scene.settings.max_depth };
+            settings.check().map_err(anyhow::Error::msg)?;
+            let ours = time_frames(&scene, &geometry, &view, &settings, args.warmup, args.frames);
+            progress.set_message(format!("{name} {res}²: Mitsuba 3"));
+            let mitsuba = match &peer {
+                None => MitsubaRun::Skipped("--no-mitsuba".into()),
+                Some(Err(())) => MitsubaRun::Skipped("no shared scenes folder next to the scene files".into()),
+                Some(Ok(p)) => p.thesis_frames(file, res, args.frames, threads, &args.out.join("mitsuba")),
+            };
+            rows.push(FrameRow {
+                scene: name,
+                triangles: geometry.triangles.len(),
+                res,
+                builder: args.builder.to_string(),
+                ours,
+                mitsuba,
+            });
+            progress.inc(1);
+        }
+    }
+    progress.finish_and_clear();
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let info = FrameRunInfo { command: &command, threads };
+    write_frame_report(&args.out, &info, &rows)?;
+    println!("{}", markdown(&info, &rows));
+    println!("wrote {}", args.out.join("frame.md").display());
+    Ok(())
+}
