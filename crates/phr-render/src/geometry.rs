@@ -15,7 +15,7 @@
 
 use crate::scene::{Scene, SphereObject};
 use glam::Vec3;
-use phr_bvh::triangle::{intersect_triangle, triangle_bounds, triangle_normal};
+use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
 use phr_bvh::{closest_hit_counted, Aabb, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
 
 /// A closest hit: distance, primitive, and barycentrics for triangles.
@@ -25,7 +25,14 @@ pub struct Hit {
     pub prim: u32,
     pub u: f32,
     pub v: f32,
+    /// Where the wide tree's leaf order holds the triangle ([`NO_SLOT`] if unknown): shading
+    /// reads its vertices from the packed block the intersection test has just loaded,
+    /// instead of from the scene-order array (a cache miss per hit).
+    pub slot: u32,
 }
+
+/// [`Hit::slot`] of hits found without the wide tree (spheres, the counting traversal).
+pub const NO_SLOT: u32 = u32::MAX;
 
 /// What shading needs to know about a hit point.
 #[derive(Clone, Copy, Debug)]
@@ -172,10 +179,10 @@ impl Geometry {
         let probe = &*ray;
         let hit = if (prim as usize) < self.triangles.len() {
             let [a, b, c] = self.triangles[prim as usize];
-            intersect_triangle(probe, a, b, c).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v })
+            intersect_triangle(probe, a, b, c).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v, slot: NO_SLOT })
         } else {
             let s = &self.spheres[prim as usize - self.triangles.len()].sphere;
-            s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0 })
+            s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0, slot: NO_SLOT })
         };
         Self::keep_closest(hit, ray, best)
     }
@@ -187,10 +194,10 @@ impl Geometry {
         let prim = self.wide.prim_indices[i as usize];
         let probe = &*ray;
         let hit = if (prim as usize) < self.triangles.len() {
-            self.packed.intersect(i, probe).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v })
+            self.packed.intersect(i, probe).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v, slot: i })
         } else {
             let s = &self.spheres[prim as usize - self.triangles.len()].sphere;
-            s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0 })
+            s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0, slot: NO_SLOT })
         };
         Self::keep_closest(hit, ray, best)
     }
@@ -212,36 +219,35 @@ impl Geometry {
     /// The closest hit along `ray` within its interval.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let mut r = *ray;
-        let mut best = None;
         if self.spheres.is_empty() {
-            // Triangles only: whole leaves at once (4-lane Möller–Trumbore, same bits).
-            let prims = &self.wide.prim_indices;
-            self.wide.closest_hit_leaves_prefetch(
-                &mut r,
-                |i| self.packed.prefetch(i),
-                |first, count, r| {
-                    self.packed.leaf_hits(first, count, r, |i, h, r| {
-                        let hit = Hit { t: h.t, prim: prims[i as usize], u: h.u, v: h.v };
-                        Self::keep_closest(Some(hit), r, &mut best)
-                    })
-                },
-            );
-        } else {
-            self.wide.closest_hit_leaves(&mut r, |first, count, r| {
-                let mut hit = false;
-                for i in first..first + count {
-                    hit |= self.test_packed(i, r, &mut best);
-                }
-                hit
+            // Triangles only: whole leaves at once (4-lane Möller–Trumbore, same bits), the
+            // leaf test compiled into the traversal loop.
+            return self.wide.closest_triangle_slot(&self.packed, ray).map(|h| Hit {
+                t: h.hit.t,
+                prim: h.prim,
+                u: h.hit.u,
+                v: h.hit.v,
+                slot: h.slot,
             });
         }
+        let mut r = *ray;
+        let mut best = None;
+        self.wide.closest_hit_leaves(&mut r, |first, count, r| {
+            let mut hit = false;
+            for i in first..first + count {
+                hit |= self.test_packed(i, r, &mut best);
+            }
+            hit
+        });
         best
     }
 
     /// Whether anything lies along `ray` within its interval (shadow rays): stops at the
     /// first hit.
     pub fn occluded(&self, ray: &Ray) -> bool {
+        if self.spheres.is_empty() {
+            return self.wide.any_triangle(&self.packed, ray);
+        }
         self.wide.any_hit_leaves(ray, |first, count, r| {
             (first..first + count).any(|i| {
                 let prim = self.wide.prim_indices[i as usize] as usize;
@@ -268,9 +274,17 @@ impl Geometry {
     pub fn surface_point(&self, ray: &Ray, hit: &Hit) -> SurfacePoint {
         let n_tris = self.triangles.len();
         let (position, normal, material, rel) = if (hit.prim as usize) < n_tris {
-            let [a, b, c] = self.triangles[hit.prim as usize];
-            let p = a * (1.0 - hit.u - hit.v) + b * hit.u + c * hit.v;
-            let n = triangle_normal(a, b, c).normalize_or(Vec3::Z);
+            // `v0 + u e1 + v e2` and `e1 × e2`, from the packed copy when the hit says where
+            // it is (the same values: the packed edges are computed as here).
+            let [v0, e1, e2] = match hit.slot {
+                NO_SLOT => {
+                    let [a, b, c] = self.triangles[hit.prim as usize];
+                    [a, b - a, c - a]
+                }
+                slot => self.packed.get(slot),
+            };
+            let p = v0 + e1 * hit.u + e2 * hit.v;
+            let n = e1.cross(e2).normalize_or(Vec3::Z);
             (p, n, self.triangle_material[hit.prim as usize], TRIANGLE_OFFSET)
         } else {
             let s = &self.spheres[hit.prim as usize - n_tris];

@@ -16,7 +16,7 @@ use glam::Vec3;
 use phr_bvh::sphere::Sphere;
 use phr_bvh::triangle::intersect_triangle;
 use phr_bvh::{Builder, Ray, TraversalStats};
-use phr_render::geometry::{Geometry, Hit};
+use phr_render::geometry::{Geometry, Hit, NO_SLOT};
 use phr_render::material::Material;
 use phr_render::sampler::Pcg32;
 use phr_render::scene::{Mesh, Scene, SphereObject};
@@ -134,6 +134,19 @@ fn check_against_brute_force(scene: &Scene, rays: &[Ray]) -> (usize, usize) {
                 "{builder}: intersect_counted, ray {i}"
             );
             assert_eq!(geometry.occluded(ray), expected.is_some(), "{builder}: occluded, ray {i} {ray:?}");
+            if let (Some(fast), Some(reference)) = (got, counted) {
+                // The wide query says where its triangle is packed; shading from there gives
+                // the same bits as from the scene-order triangle the counting query names.
+                let is_triangle = (fast.prim as usize) < geometry.triangles.len();
+                assert_eq!(fast.slot != NO_SLOT, is_triangle, "{builder}: slot of ray {i}");
+                assert_eq!(reference.slot, NO_SLOT);
+                let (a, b) = (geometry.surface_point(ray, &fast), geometry.surface_point(ray, &reference));
+                assert_eq!(
+                    (a.position, a.normal, a.front, a.material, a.offset),
+                    (b.position, b.normal, b.front, b.material, b.offset),
+                    "{builder}: surface point, ray {i}"
+                );
+            }
             if let Some((_, _, n)) = expected {
                 hits += 1;
                 ties += (n > 1) as usize;

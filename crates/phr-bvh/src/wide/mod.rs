@@ -71,6 +71,7 @@ pub mod simd;
 mod traverse;
 pub mod triangles;
 
+pub use traverse::LeafVisitor;
 pub use triangles::PackedTriangles;
 
 pub use collapse::CollapseOptions;
@@ -265,7 +266,12 @@ where
     #[inline]
     pub fn closest_hit_leaves(&self, ray: &mut Ray, leaf: impl FnMut(u32, u32, &mut Ray) -> bool) -> bool {
         let mut stats = WideStats::default();
-        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, false, _, _>(self, ray, leaf, |_| {}, &mut stats)
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, false, _>(
+            self,
+            ray,
+            &mut traverse::FnLeaves(leaf, |_| {}),
+            &mut stats,
+        )
     }
 
     /// [`WideBvh::closest_hit_leaves`] with a prefetch hint: `prefetch(first)` is called when
@@ -279,7 +285,12 @@ where
         leaf: impl FnMut(u32, u32, &mut Ray) -> bool,
     ) -> bool {
         let mut stats = WideStats::default();
-        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, false, _, _>(self, ray, leaf, prefetch, &mut stats)
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, false, _>(
+            self,
+            ray,
+            &mut traverse::FnLeaves(leaf, prefetch),
+            &mut stats,
+        )
     }
 
     /// [`WideBvh::closest_hit_leaves`], also counting nodes, leaves and primitives.
@@ -290,7 +301,12 @@ where
         leaf: impl FnMut(u32, u32, &mut Ray) -> bool,
         stats: &mut WideStats,
     ) -> bool {
-        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, true, _, _>(self, ray, leaf, |_| {}, stats)
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, true, _>(
+            self,
+            ray,
+            &mut traverse::FnLeaves(leaf, |_| {}),
+            stats,
+        )
     }
 
     /// Closest hit with a per-primitive test, like [`crate::traverse::closest_hit`]:
@@ -312,13 +328,28 @@ where
     pub fn any_hit_leaves(&self, ray: &Ray, mut leaf: impl FnMut(u32, u32, &Ray) -> bool) -> bool {
         let mut r = *ray;
         let mut stats = WideStats::default();
-        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<true, false, _, _>(
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<true, false, _>(
             self,
             &mut r,
-            |first, count, r: &mut Ray| leaf(first, count, r),
-            |_| {},
+            &mut traverse::FnLeaves(|first, count, r: &mut Ray| leaf(first, count, r), |_| {}),
             &mut stats,
         )
+    }
+
+    /// Closest hit with a [`LeafVisitor`] (the leaf test compiled into the loop; see there).
+    /// Returns true if any primitive was hit.
+    #[inline]
+    pub fn closest_hit_visit(&self, ray: &mut Ray, leaves: &mut impl LeafVisitor) -> bool {
+        let mut stats = WideStats::default();
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, false, _>(self, ray, leaves, &mut stats)
+    }
+
+    /// Any hit with a [`LeafVisitor`]: stops at the first leaf whose visit returns true.
+    #[inline]
+    pub fn any_hit_visit(&self, ray: &Ray, leaves: &mut impl LeafVisitor) -> bool {
+        let mut r = *ray;
+        let mut stats = WideStats::default();
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run::<true, false, _>(self, &mut r, leaves, &mut stats)
     }
 
     /// Any hit with a per-primitive test, like [`crate::traverse::any_hit`].

@@ -32,6 +32,39 @@ struct Entry {
     t: f32,
 }
 
+/// What the traversal does at leaves. Implement it on a type (with `#[inline(always)]` on
+/// [`LeafVisitor::visit`]) to have the leaf test compiled into the traversal loop: a closure
+/// passed to [`WideBvh::closest_hit_leaves`] is called through a function the compiler may
+/// keep out of line (the loop is instantiated once per SIMD level), and every call then
+/// spills and reloads the ray's SIMD registers.
+pub trait LeafVisitor {
+    /// Tests the primitives `prim_indices[first..first + count]`; on hits shrinks `ray.tmax`
+    /// (closest hit). Returns whether anything was hit.
+    fn visit(&mut self, first: u32, count: u32, ray: &mut Ray) -> bool;
+
+    /// The leaf starting at `first` was pushed, to be visited later: a hint to ask for its
+    /// primitive data now.
+    #[inline(always)]
+    fn prefetch(&self, first: u32) {
+        let _ = first;
+    }
+}
+
+/// Closures as [`LeafVisitor`]s: the leaf test and the prefetch hint.
+pub(crate) struct FnLeaves<F, P>(pub F, pub P);
+
+impl<F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)> LeafVisitor for FnLeaves<F, P> {
+    #[inline(always)]
+    fn visit(&mut self, first: u32, count: u32, ray: &mut Ray) -> bool {
+        (self.0)(first, count, ray)
+    }
+
+    #[inline(always)]
+    fn prefetch(&self, first: u32) {
+        (self.1)(first)
+    }
+}
+
 /// A node kernel: the box test of [`super::simd`] for one width and level.
 trait Kernel<const N: usize> {
     /// # Safety
@@ -87,17 +120,12 @@ impl Kernel<8> for Avx2Kernel {
 /// The CPU must support `K`'s instructions; `bvh` must be a tree made by the collapse (child
 /// indices in range, stack bound correct).
 #[inline(always)]
-unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, F, P>(
+unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, V: LeafVisitor>(
     bvh: &WideBvh<N>,
     ray: &mut Ray,
-    mut leaf: F,
-    prefetch: P,
+    leaves: &mut V,
     stats: &mut WideStats,
-) -> bool
-where
-    F: FnMut(u32, u32, &mut Ray) -> bool,
-    P: Fn(u32),
-{
+) -> bool {
     let nodes = &bvh.nodes;
     // A ray with a non-finite origin or direction hits nothing, and must not be traversed:
     // through `inf - inf` or `inf * 0` its slab distances turn NaN, which can make an empty
@@ -148,7 +176,7 @@ where
                     if node.count[far] == 0 {
                         prefetch_node(nodes, node.child[far]);
                     } else {
-                        prefetch(node.child[far]);
+                        leaves.prefetch(node.child[far]);
                     }
                     debug_assert!(sp <= bvh.stack_bound, "wide traversal: stack bound exceeded");
                     // SAFETY: as for the general case below.
@@ -180,7 +208,7 @@ where
                     if node.count[i] == 0 {
                         prefetch_node(nodes, node.child[i]);
                     } else {
-                        prefetch(node.child[i]);
+                        leaves.prefetch(node.child[i]);
                     }
                     // SAFETY: the stack holds `stack_bound + 1` entries and the collapse
                     // bounds the entries on the stack by `stack_bound` (see
@@ -198,7 +226,7 @@ where
                 stats.leaves += 1;
                 stats.prims += cur.count;
             }
-            if leaf(cur.child, cur.count, ray) {
+            if leaves.visit(cur.child, cur.count, ray) {
                 hit = true;
                 if ANY {
                     return true;
@@ -255,30 +283,28 @@ fn prefetch_node<const N: usize>(nodes: &[WideNode<N>], i: u32) {
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn run_avx2_8<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
+unsafe fn run_avx2_8<const ANY: bool, const COUNT: bool, V: LeafVisitor>(
     bvh: &WideBvh<8>,
     ray: &mut Ray,
-    leaf: F,
-    prefetch: P,
+    leaves: &mut V,
     stats: &mut WideStats,
 ) -> bool {
     // SAFETY: AVX2 is enabled here, which the caller guarantees the CPU has.
-    unsafe { run::<8, Avx2Kernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) }
+    unsafe { run::<8, Avx2Kernel, ANY, COUNT, V>(bvh, ray, leaves, stats) }
 }
 
 /// # Safety
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn run_avx2_4<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
+unsafe fn run_avx2_4<const ANY: bool, const COUNT: bool, V: LeafVisitor>(
     bvh: &WideBvh<4>,
     ray: &mut Ray,
-    leaf: F,
-    prefetch: P,
+    leaves: &mut V,
     stats: &mut WideStats,
 ) -> bool {
     // SAFETY: SSE is baseline; AVX2 (VEX encoding) is what the caller guarantees.
-    unsafe { run::<4, SseKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) }
+    unsafe { run::<4, SseKernel, ANY, COUNT, V>(bvh, ray, leaves, stats) }
 }
 
 pub mod sealed {
@@ -286,11 +312,10 @@ pub mod sealed {
 
     /// Dispatch from a [`SimdLevel`] to the kernels of one width.
     pub trait Sealed<const N: usize> {
-        fn run<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
+        fn run<const ANY: bool, const COUNT: bool, V: LeafVisitor>(
             bvh: &WideBvh<N>,
             ray: &mut Ray,
-            leaf: F,
-            prefetch: P,
+            leaves: &mut V,
             stats: &mut WideStats,
         ) -> bool;
     }
@@ -298,41 +323,39 @@ pub mod sealed {
 
 impl sealed::Sealed<4> for Lanes<4> {
     #[inline]
-    fn run<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
+    fn run<const ANY: bool, const COUNT: bool, V: LeafVisitor>(
         bvh: &WideBvh<4>,
         ray: &mut Ray,
-        leaf: F,
-        prefetch: P,
+        leaves: &mut V,
         stats: &mut WideStats,
     ) -> bool {
         match bvh.simd() {
             // SAFETY (all arms): `WideBvh::set_simd` never selects a level the CPU lacks, and
             // the tree comes from the collapse.
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Avx2 => unsafe { run_avx2_4::<ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
+            SimdLevel::Avx2 => unsafe { run_avx2_4::<ANY, COUNT, V>(bvh, ray, leaves, stats) },
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Sse => unsafe { run::<4, SseKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
-            _ => unsafe { run::<4, ScalarKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
+            SimdLevel::Sse => unsafe { run::<4, SseKernel, ANY, COUNT, V>(bvh, ray, leaves, stats) },
+            _ => unsafe { run::<4, ScalarKernel, ANY, COUNT, V>(bvh, ray, leaves, stats) },
         }
     }
 }
 
 impl sealed::Sealed<8> for Lanes<8> {
     #[inline]
-    fn run<const ANY: bool, const COUNT: bool, F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)>(
+    fn run<const ANY: bool, const COUNT: bool, V: LeafVisitor>(
         bvh: &WideBvh<8>,
         ray: &mut Ray,
-        leaf: F,
-        prefetch: P,
+        leaves: &mut V,
         stats: &mut WideStats,
     ) -> bool {
         match bvh.simd() {
             // SAFETY (all arms): as for width 4.
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Avx2 => unsafe { run_avx2_8::<ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
+            SimdLevel::Avx2 => unsafe { run_avx2_8::<ANY, COUNT, V>(bvh, ray, leaves, stats) },
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Sse => unsafe { run::<8, SseKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
-            _ => unsafe { run::<8, ScalarKernel, ANY, COUNT, F, P>(bvh, ray, leaf, prefetch, stats) },
+            SimdLevel::Sse => unsafe { run::<8, SseKernel, ANY, COUNT, V>(bvh, ray, leaves, stats) },
+            _ => unsafe { run::<8, ScalarKernel, ANY, COUNT, V>(bvh, ray, leaves, stats) },
         }
     }
 }

@@ -1,7 +1,7 @@
 //! Triangles laid out for intersection: in the leaf order of a [`super::WideBvh`], with the
 //! edges precomputed, in blocks of 4 (structure of arrays) tested 4 at a time.
 
-use super::{Lanes, SimdLevel, WideBvh, Width};
+use super::{Lanes, LeafVisitor, SimdLevel, WideBvh, Width};
 use crate::ray::Ray;
 use crate::triangle::{intersect_triangle_edges, TriangleHit, EDGE_TOLERANCE, MAX_EDGE_SLACK};
 use glam::Vec3;
@@ -233,6 +233,66 @@ mod sse {
     }
 }
 
+/// A closest triangle hit with where it was found: `slot`, the entry in the tree's leaf order
+/// (for [`PackedTriangles::get`], whose data the hit has just brought into the cache), and
+/// `prim`, the caller's primitive index.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlotHit {
+    pub slot: u32,
+    pub prim: u32,
+    pub hit: TriangleHit,
+}
+
+/// The closest-hit leaf test over packed triangles, as a [`LeafVisitor`] (compiled into the
+/// traversal loop). Ties (equal `t`) go to the lowest primitive index, whatever the visit
+/// order, so the result equals brute force's.
+pub struct ClosestTriangle<'a> {
+    tris: &'a PackedTriangles,
+    prims: &'a [u32],
+    /// The best hit so far.
+    pub best: Option<SlotHit>,
+}
+
+impl<'a> ClosestTriangle<'a> {
+    pub fn new<const N: usize>(bvh: &'a WideBvh<N>, tris: &'a PackedTriangles) -> Self {
+        Self { tris, prims: &bvh.prim_indices, best: None }
+    }
+}
+
+impl LeafVisitor for ClosestTriangle<'_> {
+    #[inline(always)]
+    fn visit(&mut self, first: u32, count: u32, ray: &mut Ray) -> bool {
+        let (prims, best) = (self.prims, &mut self.best);
+        self.tris.leaf_hits(first, count, ray, |slot, hit, r| {
+            let prim = prims[slot as usize];
+            // Hits at exactly tmax are reported too; they win if their index is lower.
+            if hit.t < r.tmax || best.is_none_or(|b| prim < b.prim) {
+                r.tmax = hit.t;
+                *best = Some(SlotHit { slot, prim, hit });
+                true
+            } else {
+                false
+            }
+        })
+    }
+
+    #[inline(always)]
+    fn prefetch(&self, first: u32) {
+        self.tris.prefetch(first);
+    }
+}
+
+/// The any-hit leaf test over packed triangles, as a [`LeafVisitor`].
+pub struct AnyTriangle<'a>(pub &'a PackedTriangles);
+
+impl LeafVisitor for AnyTriangle<'_> {
+    #[inline(always)]
+    fn visit(&mut self, first: u32, count: u32, ray: &mut Ray) -> bool {
+        let mut r = *ray;
+        self.0.leaf_hits(first, count, &mut r, |_, _, _| true)
+    }
+}
+
 impl<const N: usize> WideBvh<N>
 where
     Lanes<N>: Width<N>,
@@ -242,35 +302,21 @@ where
     /// visit order, so the result equals brute force's.
     #[inline]
     pub fn closest_triangle(&self, tris: &PackedTriangles, ray: &Ray) -> Option<(u32, TriangleHit)> {
+        self.closest_triangle_slot(tris, ray).map(|h| (h.prim, h.hit))
+    }
+
+    /// [`WideBvh::closest_triangle`] with the hit's slot in leaf order.
+    #[inline]
+    pub fn closest_triangle_slot(&self, tris: &PackedTriangles, ray: &Ray) -> Option<SlotHit> {
         let mut r = *ray;
-        let mut best: Option<(u32, TriangleHit)> = None;
-        let prims = &self.prim_indices;
-        self.closest_hit_leaves_prefetch(
-            &mut r,
-            |i| tris.prefetch(i),
-            |first, count, r| {
-                tris.leaf_hits(first, count, r, |i, h, r| {
-                    let p = prims[i as usize];
-                    // Hits at exactly tmax are reported too; they win if their index is lower.
-                    if h.t < r.tmax || best.is_none_or(|(bp, _)| p < bp) {
-                        r.tmax = h.t;
-                        best = Some((p, h));
-                        true
-                    } else {
-                        false
-                    }
-                })
-            },
-        );
-        best
+        let mut visitor = ClosestTriangle::new(self, tris);
+        self.closest_hit_visit(&mut r, &mut visitor);
+        visitor.best
     }
 
     /// Whether any triangle is hit within the ray's interval.
     #[inline]
     pub fn any_triangle(&self, tris: &PackedTriangles, ray: &Ray) -> bool {
-        self.any_hit_leaves(ray, |first, count, r| {
-            let mut r = *r;
-            tris.leaf_hits(first, count, &mut r, |_, _, _| true)
-        })
+        self.any_hit_visit(ray, &mut AnyTriangle(tris))
     }
 }
