@@ -47,6 +47,9 @@ impl PackedTriangles {
     /// Packs again (the triangles moved, or the tree changed) into the same memory.
     pub fn repack(&mut self, prim_indices: &[u32], triangles: &[[Vec3; 3]]) {
         use rayon::prelude::*;
+        // Detected once here, not per leaf: the detection is a call through the dynamic
+        // linker's table, which showed up at 4 % of a render's time.
+        self.simd.get_or_insert_with(SimdLevel::detect);
         self.blocks.resize(prim_indices.len().div_ceil(LANES), TriangleBlock::default());
         self.blocks.par_iter_mut().zip(prim_indices.par_chunks(LANES)).for_each(|(block, lanes)| {
             *block = TriangleBlock::default();
@@ -67,8 +70,11 @@ impl PackedTriangles {
         self.simd = Some(level.min(SimdLevel::detect()));
     }
 
+    /// The leaf test in use (set when packing; an empty, never packed set has nothing to
+    /// test).
+    #[inline(always)]
     fn simd(&self) -> SimdLevel {
-        self.simd.unwrap_or_else(SimdLevel::detect)
+        self.simd.unwrap_or(SimdLevel::Scalar)
     }
 
     /// Entry `i` (a position in the tree's `prim_indices`) as `[v0, e1, e2]`.
