@@ -61,23 +61,16 @@ fn csv(rows: &[FrameRow]) -> String {
     );
     for r in rows {
         let o = &r.ours;
-        let _ = writeln!(
-            s,
-            "{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.0},{:.3},{},{}",
-            r.scene,
-            r.triangles,
-            r.res,
-            r.builder,
-            o.frames,
-            o.ms.median,
-            o.ms.min,
-            o.ms.max,
-            o.ms.mean,
-            o.rays,
-            o.mrays_per_s(),
-            mitsuba_ms(&r.mitsuba),
-            r.speedup().map(|x| format!("{x:.3}")).unwrap_or_default()
-        );
+        let ms = [o.ms.median, o.ms.min, o.ms.max, o.ms.mean].map(|x| format!("{x:.3}"));
+        let mut cells = vec![r.scene.clone(), r.triangles.to_string(), r.res.to_string(), r.builder.clone()];
+        cells.push(o.frames.to_string());
+        cells.extend(ms);
+        cells.push(format!("{:.0}", o.rays));
+        cells.push(format!("{:.3}", o.mrays_per_s()));
+        cells.push(mitsuba_ms(&r.mitsuba));
+        cells.push(r.speedup().map(|x| format!("{x:.3}")).unwrap_or_default());
+        s.push_str(&cells.join(","));
+        s.push('\n');
     }
     s
 }

@@ -108,13 +108,6 @@ struct SceneInfo {
     block_fill: f64,
 }
 
-fn suite_dir() -> Result<PathBuf> {
-    [PathBuf::from("scenes/suite"), PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/suite"))]
-        .into_iter()
-        .find(|p| p.is_dir())
-        .context("cannot find scenes/suite; run from the repository or pass --scene FILE")
-}
-
 fn script() -> Option<PathBuf> {
     peer_script("embree_rays.py")
 }
@@ -123,12 +116,7 @@ pub fn run(args: &BenchRaysArgs) -> Result<()> {
     if args.repeats == 0 || args.threads.is_empty() || args.threads.contains(&0) || args.res == 0 {
         bail!("--repeats, --threads and --res must be at least 1");
     }
-    let scenes = if args.scenes.is_empty() {
-        let dir = suite_dir()?;
-        SCENES.iter().map(|s| dir.join(format!("{s}.json"))).collect()
-    } else {
-        args.scenes.clone()
-    };
+    let scenes = if args.scenes.is_empty() { phr_bench::suite::suite_files(SCENES)? } else { args.scenes.clone() };
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let progress = ProgressBar::new(scenes.len() as u64);
     progress.set_style(

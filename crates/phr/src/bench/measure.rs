@@ -21,20 +21,7 @@ use phr_tune::PhrEvaluator;
 use std::path::Path;
 use std::time::Instant;
 
-/// Median and spread of repeated measurements.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Stat {
-    pub median: f64,
-    pub min: f64,
-    pub max: f64,
-}
-
-impl Stat {
-    pub fn of(mut v: Vec<f64>) -> Self {
-        v.sort_by(f64::total_cmp);
-        Self { median: v[v.len() / 2], min: v[0], max: v[v.len() - 1] }
-    }
-}
+use phr_bench::Stat;
 
 /// One builder on one scene at one resolution.
 #[derive(Clone, Debug)]
@@ -162,13 +149,9 @@ pub fn measure_scene(
 ) -> Result<()> {
     let mut scene = load_scene_file(path)?;
     if plan.materials == super::Materials::Thesis {
-        // The thesis's setting: white sky, every surface diffuse, 5 bounces.
-        let diffuse = phr_render::material::Material::Lambertian { albedo: glam::Vec3::splat(0.7) };
-        scene.materials.iter_mut().for_each(|m| *m = diffuse.clone());
-        scene.background = phr_render::scene::Background::Constant(glam::Vec3::ONE);
-        scene.settings.max_depth = 6;
+        phr_bench::suite::apply_thesis_setting(&mut scene);
     }
-    let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = phr_bench::suite::scene_name(path);
     let views: Vec<_> = scene.views.iter().take(plan.max_views).map(|(_, c)| c.clone()).collect();
     let mut ctx =
         SceneCtx { scene: &scene, name: name.clone(), geometry: Geometry::new(&scene), views, repeats: plan.repeats };

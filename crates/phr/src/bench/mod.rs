@@ -19,10 +19,8 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 
-pub use measure::Stat;
-
-/// The suite, by file stem in `scenes/suite`.
-pub const SUITE: &[&str] = &["bunny", "sponza", "sibenik", "dragon", "conference", "dragons8"];
+use phr_bench::suite::{suite_files, SUITE};
+pub use phr_bench::Stat;
 
 /// Builders measured by default, by name (`phr-grid` and `phr-bo` are tuned per scene).
 pub const BUILDERS: &[&str] = &["lbvh", "phr-fast", "phr-hq", "phr-grid", "phr-bo", "binned-sah", "sweep-sah"];
@@ -77,15 +75,6 @@ pub struct Plan {
     pub materials: Materials,
 }
 
-fn suite_dir() -> Result<PathBuf> {
-    let candidates =
-        [PathBuf::from("scenes/suite"), PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/suite"))];
-    candidates
-        .into_iter()
-        .find(|p| p.is_dir())
-        .context("cannot find scenes/suite; run from the repository or pass scene files")
-}
-
 fn plan(args: &BenchArgs) -> Result<Plan> {
     let known = |b: &String| BUILDERS.contains(&b.as_str());
     if let Some(b) = args.builders.iter().find(|b| !known(b)) {
@@ -94,10 +83,7 @@ fn plan(args: &BenchArgs) -> Result<Plan> {
     if args.repeats == 0 || args.resolutions.is_empty() || args.resolutions.contains(&0) {
         bail!("need at least one repeat and one non-zero resolution");
     }
-    let suite = |names: &[&str]| -> Result<Vec<PathBuf>> {
-        let dir = suite_dir()?;
-        Ok(names.iter().map(|n| dir.join(format!("{n}.json"))).collect())
-    };
+    let suite = suite_files;
     if args.quick {
         return Ok(Plan {
             scenes: if args.scenes.is_empty() { suite(&["bunny"])? } else { args.scenes.clone() },
