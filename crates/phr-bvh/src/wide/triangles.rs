@@ -207,29 +207,49 @@ mod sse {
             let qz = sub(mul(sx, e1y), mul(e1x, sy));
             let u = mul(dot(sx, sy, sz, px, py, pz), inv_det);
             let v = mul(dot(dx, dy, dz, qx, qy, qz), inv_det);
-            let abs_inv_det = abs(inv_det);
-            let edge = _mm_set1_ps(EDGE_TOLERANCE);
-            let slack = _mm_set1_ps(MAX_EDGE_SLACK);
-            // `x.min(S)` is S for NaN x, as `minps(x, S)`.
-            let tol_u = _mm_min_ps(
-                mul(mul(edge, dot(abs(sx), abs(sy), abs(sz), abs(px), abs(py), abs(pz))), abs_inv_det),
-                slack,
-            );
-            let tol_v = _mm_min_ps(
-                mul(mul(edge, dot(abs(dx), abs(dy), abs(dz), abs(qx), abs(qy), abs(qz))), abs_inv_det),
-                slack,
-            );
-            let neg = |a| _mm_xor_ps(sign, a);
-            let outside = _mm_or_ps(
-                _mm_or_ps(_mm_cmplt_ps(u, neg(tol_u)), _mm_cmplt_ps(v, neg(tol_v))),
-                _mm_cmpgt_ps(add(u, v), add(add(_mm_set1_ps(1.0), tol_u), tol_v)),
-            );
             let t = mul(dot(e2x, e2y, e2z, qx, qy, qz), inv_det);
             let in_range = _mm_and_ps(
                 _mm_and_ps(_mm_cmpgt_ps(t, _mm_set1_ps(ray.tmin)), _mm_cmple_ps(t, _mm_set1_ps(ray.tmax))),
                 _mm_cmplt_ps(t, _mm_set1_ps(f32::INFINITY)),
             );
-            let hit = _mm_andnot_ps(outside, _mm_and_ps(valid, in_range));
+            let candidate = _mm_and_ps(valid, in_range);
+            let one = _mm_set1_ps(1.0);
+            let slack = _mm_set1_ps(MAX_EDGE_SLACK);
+            let neg = |a| _mm_xor_ps(sign, a);
+            let uv = add(u, v);
+            // The edge tolerances lie in [0, MAX_EDGE_SLACK] (`minps` gives the second operand
+            // for NaN), so a lane clearly inside (u, v >= 0, u + v <= 1) or clearly outside
+            // (beyond the largest slack) gets the same answer without them; only lanes in
+            // between (or NaN) need them, and most blocks have none.
+            let clear_in = _mm_and_ps(
+                _mm_and_ps(_mm_cmpge_ps(u, _mm_setzero_ps()), _mm_cmpge_ps(v, _mm_setzero_ps())),
+                _mm_cmple_ps(uv, one),
+            );
+            let clear_out = _mm_or_ps(
+                _mm_or_ps(_mm_cmplt_ps(u, neg(slack)), _mm_cmplt_ps(v, neg(slack))),
+                _mm_cmpgt_ps(uv, add(add(one, slack), slack)),
+            );
+            let unsure = _mm_andnot_ps(_mm_or_ps(clear_in, clear_out), candidate);
+            let outside = if _mm_movemask_ps(unsure) == 0 {
+                clear_out
+            } else {
+                let abs_inv_det = abs(inv_det);
+                let edge = _mm_set1_ps(EDGE_TOLERANCE);
+                // `x.min(S)` is S for NaN x, as `minps(x, S)`.
+                let tol_u = _mm_min_ps(
+                    mul(mul(edge, dot(abs(sx), abs(sy), abs(sz), abs(px), abs(py), abs(pz))), abs_inv_det),
+                    slack,
+                );
+                let tol_v = _mm_min_ps(
+                    mul(mul(edge, dot(abs(dx), abs(dy), abs(dz), abs(qx), abs(qy), abs(qz))), abs_inv_det),
+                    slack,
+                );
+                _mm_or_ps(
+                    _mm_or_ps(_mm_cmplt_ps(u, neg(tol_u)), _mm_cmplt_ps(v, neg(tol_v))),
+                    _mm_cmpgt_ps(uv, add(add(one, tol_u), tol_v)),
+                )
+            };
+            let hit = _mm_andnot_ps(outside, candidate);
             let (mut ta, mut ua, mut va) = ([0.0f32; 4], [0.0f32; 4], [0.0f32; 4]);
             _mm_storeu_ps(ta.as_mut_ptr(), t);
             _mm_storeu_ps(ua.as_mut_ptr(), u);
