@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
 """Embree's side of `phr bench-rays`: closest-hit throughput of Intel Embree (through the
-`embreex` package) on exactly the triangles and ray batches phr traced, in the same run.
+`embreex` package) on exactly the triangles and ray batches phr traced, in the same run; the
+`shadow` batch as any-hit queries (`rtcOccluded1`, with each ray's own tfar).
 
     python3 bench/embree_rays.py DIR --kinds primary,incoherent,diffuse --threads 1,2 --repeats 3
 
 DIR holds what `phr bench-rays` exported for one scene (the format of bench/peers.py):
   triangles.bin      u32 count N, then N x 9 float32 (v0, v1, v2)
-  rays_KIND.bin      u32 count M, then M x 6 float32 (origin, direction); tnear = 0, tfar = inf
+  rays_KIND.bin      u32 count M, then M x 6 float32 (origin, direction); tnear = 0
+  tfar_KIND.bin      u32 count M, then M float32: each ray's tfar (inf, or the shadow interval)
   hits_KIND.bin      M x (int32 primitive or -1, float32 t): phr's closest hits, to compare
 
 Threads: embreex's `EmbreeScene.run` is a serial loop of `rtcIntersect1` that holds the GIL
@@ -45,18 +47,25 @@ def make_scene(tris, robust=False):
     return scene
 
 
-def worker(tris, origins, dirs, repeats, robust, barrier, queue, index):
+def trace(scene, origins, dirs, dists, occluded):
+    """One pass: closest hits (rtcIntersect1), or occlusion (rtcOccluded1) within `dists`."""
+    if occluded:
+        return scene.run(origins, dirs, dists=dists, query="OCCLUDED")
+    return scene.run(origins, dirs, output=1)
+
+
+def worker(tris, origins, dirs, dists, occluded, repeats, robust, barrier, queue, index):
     scene = make_scene(tris, robust)
     times = []
     for _ in range(repeats):
         barrier.wait()
         start = time.perf_counter()
-        scene.run(origins, dirs, output=1)
+        trace(scene, origins, dirs, dists, occluded)
         times.append(time.perf_counter() - start)
     queue.put((index, times))
 
 
-def parallel_mrays(tris, origins, dirs, threads, repeats, robust):
+def parallel_mrays(tris, origins, dirs, dists, occluded, threads, repeats, robust):
     """Mrays/s of `threads` processes tracing equal shares, best of `repeats`."""
     import numpy as np
     ctx = mp.get_context("fork")
@@ -65,7 +74,8 @@ def parallel_mrays(tris, origins, dirs, threads, repeats, robust):
     parts = np.array_split(np.arange(len(origins)), threads)
     procs = [
         ctx.Process(target=worker, args=(tris, np.ascontiguousarray(origins[p]), np.ascontiguousarray(dirs[p]),
-                                         repeats, robust, barrier, queue, i))
+                                         np.ascontiguousarray(dists[p]), occluded, repeats, robust, barrier,
+                                         queue, i))
         for i, p in enumerate(parts)
     ]
     for p in procs:
@@ -81,7 +91,7 @@ def main():
     import argparse
     ap = argparse.ArgumentParser(description="phr bench-rays: Embree side")
     ap.add_argument("folder")
-    ap.add_argument("--kinds", default="primary,incoherent,diffuse")
+    ap.add_argument("--kinds", default="primary,incoherent,diffuse,shadow")
     ap.add_argument("--threads", default="1,2")
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
@@ -104,28 +114,39 @@ def main():
         rays = read_counted(folder / f"rays_{kind}.bin", 6, "<f4")
         origins = np.ascontiguousarray(rays[:, :3])
         dirs = np.ascontiguousarray(rays[:, 3:])
-        entry = {"rays": int(len(rays)), "mrays_per_s": {}, "robust_mrays_per_s": {}}
+        tfar_file = folder / f"tfar_{kind}.bin"
+        dists = (read_counted(tfar_file, 1, "<f4")[:, 0].copy() if tfar_file.exists()
+                 else np.full(len(rays), np.inf, np.float32))
+        occluded = kind == "shadow"
+        entry = {"rays": int(len(rays)), "query": "occluded" if occluded else "intersect",
+                 "mrays_per_s": {}, "robust_mrays_per_s": {}}
         for key, robust, sc in (("mrays_per_s", False, scene), ("robust_mrays_per_s", True, robust_scene)):
             for t in threads:
                 if t == 1:
                     best = float("inf")
                     for _ in range(args.repeats):
                         start = time.perf_counter()
-                        sc.run(origins, dirs, output=1)
+                        trace(sc, origins, dirs, dists, occluded)
                         best = min(best, time.perf_counter() - start)
                     entry[key]["1"] = len(rays) / best / 1e6
                 else:
-                    entry[key][str(t)] = parallel_mrays(tris, origins, dirs, t, args.repeats, robust)
-        out = scene.run(origins, dirs, output=1)
-        prim = np.asarray(out["primID"]).astype(np.int64)
-        tfar = np.asarray(out["tfar"], dtype=np.float32)
+                    entry[key][str(t)] = parallel_mrays(tris, origins, dirs, dists, occluded, t, args.repeats,
+                                                        robust)
         ours = np.frombuffer((folder / f"hits_{kind}.bin").read_bytes(), dtype=[("prim", "<i4"), ("t", "<f4")])
-        hit_embree = (prim >= 0) & (prim < len(tris))
         hit_ours = ours["prim"] >= 0
-        both = hit_embree & hit_ours
-        same_t = np.abs(tfar[both] - ours["t"][both]) <= 1e-4 * np.maximum(1.0, np.abs(ours["t"][both]))
-        entry["hit_agreement"] = float(np.mean(hit_embree == hit_ours))
-        entry["t_agreement"] = float(np.mean(same_t)) if both.any() else 1.0
+        if occluded:
+            # rtcOccluded1 through embreex: 0 where occluded, -1 where not.
+            hit_embree = np.asarray(trace(scene, origins, dirs, dists, True)) >= 0
+            entry["hit_agreement"] = float(np.mean(hit_embree == hit_ours))
+        else:
+            out = trace(scene, origins, dirs, dists, False)
+            prim = np.asarray(out["primID"]).astype(np.int64)
+            tfar = np.asarray(out["tfar"], dtype=np.float32)
+            hit_embree = (prim >= 0) & (prim < len(tris))
+            both = hit_embree & hit_ours
+            same_t = np.abs(tfar[both] - ours["t"][both]) <= 1e-4 * np.maximum(1.0, np.abs(ours["t"][both]))
+            entry["hit_agreement"] = float(np.mean(hit_embree == hit_ours))
+            entry["t_agreement"] = float(np.mean(same_t)) if both.any() else 1.0
         result["kinds"][kind] = entry
     (folder / "embree.json").write_text(json.dumps(result, indent=1))
     print(json.dumps(result))

@@ -8,6 +8,9 @@
 //! - three ray batches: `primary` (a `--res`² image of the scene's first view), `incoherent`
 //!   (`--rays` rays from uniform points of the scene box in uniform directions) and `diffuse`
 //!   (one cosine-distributed bounce from every primary hit, as in `bench-build`);
+//! - a fourth batch, `shadow`: from each diffuse ray's origin to a uniform point of the scene
+//!   box, over the interval (0, 1 − 10⁻⁴) of the unnormalised direction (as the renderer's
+//!   light samples), traced as any-hit queries (ours `any_triangle`, Embree `rtcOccluded1`);
 //! - Mrays/s, best of `--repeats`, on rayon pools of each `--threads` size, for `binary`
 //!   (the scalar ordered traversal of `phr_bvh::traverse` with `intersect_triangle`: the
 //!   renderer's path before the wide BVH), `wide4` and `wide8` (best SIMD level of this CPU,
@@ -28,7 +31,9 @@ use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::triangle::intersect_triangle;
 use phr_bvh::wide::{Lanes, WideStats, Width};
-use phr_bvh::{closest_hit, closest_hit_counted, Aabb, Builder, Bvh, PackedTriangles, Ray, SimdLevel, WideBvh};
+use phr_bvh::{
+    any_hit, closest_hit, closest_hit_counted, Aabb, Builder, Bvh, PackedTriangles, Ray, SimdLevel, WideBvh,
+};
 use phr_render::camera::Camera;
 use phr_render::geometry::Geometry;
 use phr_render::output::write_atomically;
@@ -43,7 +48,9 @@ use std::time::Instant;
 
 /// The scenes measured by default, by file stem in `scenes/suite`.
 pub const SCENES: &[&str] = &["bunny", "sponza", "sibenik", "dragon", "conference"];
-const KINDS: [&str; 3] = ["primary", "incoherent", "diffuse"];
+const KINDS: [&str; 4] = ["primary", "incoherent", "diffuse", "shadow"];
+/// The kind traced as any-hit (occlusion) queries.
+const SHADOW: &str = "shadow";
 const VARIANTS: [&str; 3] = ["binary", "wide4", "wide8"];
 
 #[derive(Args)]
@@ -156,6 +163,53 @@ fn incoherent_rays(bounds: Aabb, count: usize) -> Vec<Ray> {
         .collect()
 }
 
+/// Shadow rays: from each diffuse ray's origin to a uniform point of the scene box, over the
+/// interval (0, 1 − 10⁻⁴) of the unnormalised direction (the renderer's light-sample rays).
+fn shadow_rays(diffuse: &[Ray], bounds: Aabb) -> Vec<Ray> {
+    diffuse
+        .par_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let mut rng = Pcg32::new(0x5ad0, i as u64);
+            let target = bounds.min + Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * bounds.extent();
+            Ray::with_interval(r.origin, target - r.origin, 0.0, 1.0 - 1e-4)
+        })
+        .collect()
+}
+
+/// Any hit by the binary reference traversal.
+#[inline]
+fn binary_occluded(bvh: &Bvh, tris: &[[Vec3; 3]], ray: &Ray) -> bool {
+    any_hit(bvh, ray, |p, r| {
+        let [a, b, c] = tris[p as usize];
+        intersect_triangle(r, a, b, c).is_some()
+    })
+}
+
+/// Every any-hit query agrees with the closest-hit reference (occluded exactly when
+/// something is hit), or with brute force where the reference misses a tolerance hit.
+#[allow(clippy::too_many_arguments)]
+fn check_occlusion(
+    name: &str,
+    rays: &[Ray],
+    reference: &[Option<(u32, f32)>],
+    tris: &[[Vec3; 3]],
+    bvh: &Bvh,
+    wide4: &WideBvh<4>,
+    packed4: &PackedTriangles,
+    wide8: &WideBvh<8>,
+    packed8: &PackedTriangles,
+) -> Result<()> {
+    let wrong = rays.par_iter().zip(reference).position_any(|(r, h)| {
+        let got = [binary_occluded(bvh, tris, r), wide4.any_triangle(packed4, r), wide8.any_triangle(packed8, r)];
+        got.iter().any(|&g| g != h.is_some() && g != brute_force(tris, r).is_some())
+    });
+    match wrong {
+        Some(i) => bail!("{name} {SHADOW}: an any-hit query disagrees with the reference, ray {:?}", rays[i]),
+        None => Ok(()),
+    }
+}
+
 /// Closest hit over every triangle (lowest index wins ties).
 fn brute_force(tris: &[[Vec3; 3]], ray: &Ray) -> Option<(u32, f32)> {
     let mut best: Option<(u32, f32)> = None;
@@ -242,7 +296,8 @@ fn measure_scene(path: &Path, args: &BenchRaysArgs, progress: &ProgressBar) -> R
     geometry.build(|b| args.builder.build(b));
     let set = RaySet::new(&geometry, &camera, args.res);
     let bounds = boxes.iter().fold(Aabb::EMPTY, |b, x| b.union(*x));
-    let batches = [set.primary, incoherent_rays(bounds, args.rays), set.diffuse];
+    let shadow = shadow_rays(&set.diffuse, bounds);
+    let batches = [set.primary, incoherent_rays(bounds, args.rays), set.diffuse, shadow];
 
     let dir = std::env::temp_dir().join(format!("phr-bench-rays-{}", std::process::id())).join(&name);
     let export = !args.no_embree && script().is_some();
@@ -288,6 +343,10 @@ fn measure_scene(path: &Path, args: &BenchRaysArgs, progress: &ProgressBar) -> R
         };
         check("wide4", rays.par_iter().map(|r| wide_hit(&wide4, &packed4, r)).collect())?;
         check("wide8", rays.par_iter().map(|r| wide_hit(&wide8, &packed8, r)).collect())?;
+        let any = *kind == SHADOW;
+        if any {
+            check_occlusion(&name, rays, &reference, &tris, &bvh, &wide4, &packed4, &wide8, &packed8)?;
+        }
         let hits = reference.iter().filter(|h| h.is_some()).count();
         if export {
             write_rays(&dir, kind, rays, &reference)?;
@@ -305,12 +364,17 @@ fn measure_scene(path: &Path, args: &BenchRaysArgs, progress: &ProgressBar) -> R
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
             progress.set_message(format!("{name}: {kind} rays, {threads} thread(s)"));
             let r = args.repeats;
-            let (b, w4, w8) = pool.install(|| {
-                (
+            let (b, w4, w8) = pool.install(|| match any {
+                true => (
+                    throughput(rays, r, |ray| binary_occluded(&bvh, &tris, ray)),
+                    throughput(rays, r, |ray| wide4.any_triangle(&packed4, ray)),
+                    throughput(rays, r, |ray| wide8.any_triangle(&packed8, ray)),
+                ),
+                false => (
                     throughput(rays, r, |ray| binary_hit(&bvh, &tris, ray).is_some()),
                     throughput(rays, r, |ray| wide_hit(&wide4, &packed4, ray).is_some()),
                     throughput(rays, r, |ray| wide_hit(&wide8, &packed8, ray).is_some()),
-                )
+                ),
             });
             for (v, m) in VARIANTS.iter().zip([b, w4, w8]) {
                 row.mrays.insert((v.to_string(), threads), m);
@@ -376,6 +440,7 @@ fn measure_scene(path: &Path, args: &BenchRaysArgs, progress: &ProgressBar) -> R
         // The share needs the 1-thread full time; measure it if 1 was not among --threads.
         let full_1 = match row.mrays.get(&("wide8".to_string(), 1)) {
             Some(&m) => m,
+            None if any => one.install(|| throughput(rays, args.repeats, |ray| wide8.any_triangle(&packed8, ray))),
             None => one.install(|| throughput(rays, args.repeats, |ray| wide_hit(&wide8, &packed8, ray).is_some())),
         };
         row.traversal_share = full_1 / traversal;
@@ -451,6 +516,7 @@ fn note(progress: &ProgressBar, message: String) {
 fn write_rays(dir: &Path, kind: &str, rays: &[Ray], hits: &[Option<(u32, f32)>]) -> Result<()> {
     let floats = rays.iter().flat_map(|r| [r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z]);
     write_counted(&dir.join(format!("rays_{kind}.bin")), rays.len(), floats)?;
+    write_counted(&dir.join(format!("tfar_{kind}.bin")), rays.len(), rays.iter().map(|r| r.tmax))?;
     let path = dir.join(format!("hits_{kind}.bin"));
     write_atomically(&path, |tmp| {
         let mut f = std::io::BufWriter::new(std::fs::File::create(tmp)?);
@@ -479,7 +545,10 @@ fn markdown(infos: &[SceneInfo], rows: &[Row], threads: &[usize], args: &BenchRa
         "# phr bench-rays\n\nCommand: `{}` (release build).\n\nClosest-hit Mrays/s (best of {}), builder {}, primary rays {}², {} incoherent rays. \
          `binary`: scalar binary traversal (the reference); `wide4`/`wide8`: wide BVH, SIMD level `{}`; \
          Embree: embreex `rtcIntersect1` loop, T threads = T processes, default scene flags and \
-         `robust=True` (conservative traversal, like ours). Ratio: best of wide4/wide8 over Embree.\n\n",
+         `robust=True` (conservative traversal, like ours). Ratio: best of wide4/wide8 over Embree. \
+         `shadow`: rays from the diffuse rays' origins to uniform points of the scene box, interval (0, 1 − 10⁻⁴) \
+         of the unnormalised direction, traced as any-hit queries (ours `any_triangle`, Embree \
+         `rtcOccluded1`); their work-per-ray row counts the closest-hit query on the same rays.\n\n",
         command.join(" "),
         args.repeats,
         args.builder,

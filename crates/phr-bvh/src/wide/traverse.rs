@@ -3,8 +3,11 @@
 //! One loop for closest and any hit: test all children of the current node at once, and
 //! - no child hit: pop;
 //! - one child hit: go there (no stack traffic, the common case deep in the tree);
-//! - several: sort them by entry distance (keys `t_bits << 32 | slot`, insertion sort, at
+//! - several (closest hit): sort them by entry distance (keys `t_bits << 32 | slot`, insertion sort, at
 //!   most `N` of them), push all but the nearest, farthest first, and go to the nearest.
+//!
+//! Any-hit queries push the hit children unsorted (the first hit ends the query wherever it
+//! is found).
 //!
 //! A leaf child is a stack entry like a node, with its primitive count, so leaves are tested
 //! in entry-distance order too. Popped entries whose entry distance exceeds the closest hit
@@ -168,20 +171,27 @@ unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, 
                     cur = Entry { child: node.child[i], count: node.count[i], t: t[i] };
                     continue;
                 }
+                if ANY {
+                    // Any hit needs no order: push the children in slot order (no sort, no
+                    // distance compare) and go to the first, as Embree's occlusion traversal.
+                    let first = mask.trailing_zeros() as usize;
+                    let mut m = mask & (mask - 1);
+                    while m != 0 {
+                        let i = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        // SAFETY: see `push`.
+                        unsafe { push(node, i, t[i], nodes, leaves, stack, &mut sp, bvh.stack_bound) };
+                    }
+                    cur = Entry { child: node.child[first], count: node.count[first], t: t[first] };
+                    continue;
+                }
                 let rest = mask & (mask - 1);
                 if rest & (rest - 1) == 0 {
                     // Two children (the common case): push the farther, visit the nearer.
                     let (a, b) = (mask.trailing_zeros() as usize, rest.trailing_zeros() as usize);
                     let (near, far) = if t[b] < t[a] { (b, a) } else { (a, b) };
-                    if node.count[far] == 0 {
-                        prefetch_node(nodes, node.child[far]);
-                    } else {
-                        leaves.prefetch(node.child[far]);
-                    }
-                    debug_assert!(sp <= bvh.stack_bound, "wide traversal: stack bound exceeded");
-                    // SAFETY: as for the general case below.
-                    unsafe { stack.add(sp).write(Entry { child: node.child[far], count: node.count[far], t: t[far] }) };
-                    sp += 1;
+                    // SAFETY: see `push`.
+                    unsafe { push(node, far, t[far], nodes, leaves, stack, &mut sp, bvh.stack_bound) };
                     cur = Entry { child: node.child[near], count: node.count[near], t: t[near] };
                     continue;
                 }
@@ -205,17 +215,8 @@ unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, 
                 }
                 for &key in keys[1..k].iter().rev() {
                     let i = (key & 0xff) as usize;
-                    if node.count[i] == 0 {
-                        prefetch_node(nodes, node.child[i]);
-                    } else {
-                        leaves.prefetch(node.child[i]);
-                    }
-                    // SAFETY: the stack holds `stack_bound + 1` entries and the collapse
-                    // bounds the entries on the stack by `stack_bound` (see
-                    // `collapse::collapse`).
-                    debug_assert!(sp <= bvh.stack_bound, "wide traversal: stack bound exceeded");
-                    unsafe { stack.add(sp).write(Entry { child: node.child[i], count: node.count[i], t: t[i] }) };
-                    sp += 1;
+                    // SAFETY: see `push`.
+                    unsafe { push(node, i, t[i], nodes, leaves, stack, &mut sp, bvh.stack_bound) };
                 }
                 let i = (keys[0] & 0xff) as usize;
                 cur = Entry { child: node.child[i], count: node.count[i], t: t[i] };
@@ -247,6 +248,35 @@ unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, 
             }
         }
     }
+}
+
+/// Pushes child `i` of `node` (entry distance `t`) and asks for its data to be loaded: the
+/// node's box rows, or the leaf's primitives through the visitor.
+///
+/// # Safety
+/// `stack` holds `stack_bound + 1` entries and `*sp <= stack_bound`: the collapse bounds the
+/// entries on the stack by `stack_bound` (see `collapse::collapse`).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+unsafe fn push<const N: usize, V: LeafVisitor>(
+    node: &WideNode<N>,
+    i: usize,
+    t: f32,
+    nodes: &[WideNode<N>],
+    leaves: &V,
+    stack: *mut Entry,
+    sp: &mut usize,
+    stack_bound: usize,
+) {
+    if node.count[i] == 0 {
+        prefetch_node(nodes, node.child[i]);
+    } else {
+        leaves.prefetch(node.child[i]);
+    }
+    debug_assert!(*sp <= stack_bound, "wide traversal: stack bound exceeded");
+    // SAFETY: the caller guarantees room for the entry.
+    unsafe { stack.add(*sp).write(Entry { child: node.child[i], count: node.count[i], t }) };
+    *sp += 1;
 }
 
 /// Asks for the cache line at `p` (a hint; never faults).
