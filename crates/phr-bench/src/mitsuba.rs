@@ -12,7 +12,7 @@
 //! A missing Python, package or library is not an error of the benchmark: the result says
 //! it was skipped and why.
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -64,9 +64,10 @@ impl MitsubaPeer {
 
     /// Renders `frames` warm 1-spp frames (plus the JIT pass) of the scene file's first view
     /// in the thesis's setting at `res`², on `threads` threads; scratch files go to `work`.
+    /// Anything that keeps Mitsuba from giving a warm timing is a skip, with its reason.
     pub fn thesis_frames(&self, scene_file: &Path, res: u32, frames: usize, threads: usize, work: &Path) -> MitsubaRun {
         match self.try_thesis_frames(scene_file, res, frames, threads, work) {
-            Ok(run) => run,
+            Ok(frame) => MitsubaRun::Ran(frame),
             Err(e) => MitsubaRun::Skipped(format!("{e:#}")),
         }
     }
@@ -78,9 +79,9 @@ impl MitsubaPeer {
         frames: usize,
         threads: usize,
         work: &Path,
-    ) -> Result<MitsubaRun> {
+    ) -> Result<MitsubaFrame> {
         if !self.tool.is_file() {
-            return Ok(MitsubaRun::Skipped(format!("{} not found", self.tool.display())));
+            bail!("{} not found", self.tool.display());
         }
         let text = std::fs::read_to_string(scene_file).with_context(|| format!("reading {}", scene_file.display()))?;
         let scene = thesis_frame_scene(serde_json::from_str(&text)?, res)
@@ -99,17 +100,14 @@ impl MitsubaPeer {
         if std::env::var_os("DRJIT_LIBLLVM_PATH").is_none() && Path::new(DEBIAN_LIBLLVM).is_file() {
             cmd.env("DRJIT_LIBLLVM_PATH", DEBIAN_LIBLLVM);
         }
-        let out = match cmd.output() {
-            Ok(out) => out,
-            Err(e) => return Ok(MitsubaRun::Skipped(format!("cannot run {}: {e}", self.python))),
-        };
+        let out = cmd.output().with_context(|| format!("cannot run {}", self.python))?;
         if !out.status.success() {
             let err = String::from_utf8_lossy(&out.stderr);
             let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("no message");
-            return Ok(MitsubaRun::Skipped(format!("render_reference.py failed: {}", last.trim())));
+            bail!("render_reference.py failed: {}", last.trim());
         }
         let meta: Value = serde_json::from_str(&std::fs::read_to_string(prefix.with_extension("json"))?)?;
-        Ok(parse_meta(&meta, frames))
+        parse_meta(&meta, frames)
     }
 }
 
@@ -136,22 +134,23 @@ pub fn thesis_frame_scene(mut scene: Value, res: u32) -> Option<Value> {
     Some(scene)
 }
 
-/// Reads the timings the script wrote; anything but the fast variant counts as skipped.
-fn parse_meta(meta: &Value, frames: usize) -> MitsubaRun {
+/// Reads the timings the script wrote; anything but the fast variant is an error (never
+/// compared).
+fn parse_meta(meta: &Value, frames: usize) -> Result<MitsubaFrame> {
     let variant = meta["variant"].as_str().unwrap_or("unknown").to_string();
     if variant != VARIANT {
-        return MitsubaRun::Skipped(format!("Mitsuba ran the {variant} variant, not {VARIANT}"));
+        bail!("Mitsuba ran the {variant} variant, not {VARIANT}");
     }
     let timings = &meta["timings"];
     match (timings["ms_per_spp_warm"].as_f64(), timings["first_pass_s"].as_f64()) {
-        (Some(warm_ms), Some(first_s)) => MitsubaRun::Ran(MitsubaFrame {
+        (Some(warm_ms), Some(first_s)) => Ok(MitsubaFrame {
             variant,
             integrator: meta["integrator"].as_str().unwrap_or("unknown").to_string(),
             warm_ms,
             first_ms: first_s * 1e3,
             frames,
         }),
-        _ => MitsubaRun::Skipped("render_reference.py wrote no warm timings".into()),
+        _ => bail!("render_reference.py wrote no warm timings"),
     }
 }
 
@@ -181,9 +180,9 @@ mod tests {
                    "timings": {"ms_per_spp_warm": 40.0, "first_pass_s": 0.5}})
         };
         match parse_meta(&meta("llvm_ad_rgb"), 8) {
-            MitsubaRun::Ran(f) => assert_eq!((f.warm_ms, f.first_ms, f.frames), (40.0, 500.0, 8)),
-            MitsubaRun::Skipped(why) => panic!("skipped: {why}"),
+            Ok(f) => assert_eq!((f.warm_ms, f.first_ms, f.frames), (40.0, 500.0, 8)),
+            Err(why) => panic!("skipped: {why}"),
         }
-        assert!(matches!(parse_meta(&meta("scalar_rgb"), 8), MitsubaRun::Skipped(_)));
+        assert!(parse_meta(&meta("scalar_rgb"), 8).is_err());
     }
 }

@@ -43,8 +43,13 @@ pub fn run(args: &BenchFrameArgs) -> Result<()> {
     }
     let files = if args.scenes.is_empty() { suite_files(SUITE)? } else { args.scenes.clone() };
     let threads = rayon::current_num_threads();
-    let peer = (!args.no_mitsuba)
-        .then(|| phr_render::scene::json::scenes_dir(&files[0]).map(|dir| MitsubaPeer::next_to(&dir)).ok_or(()));
+    // The peer, or why it does not run (the reason every row then reports).
+    let peer: Result<MitsubaPeer, &str> = match args.no_mitsuba {
+        true => Err("--no-mitsuba"),
+        false => phr_render::scene::json::scenes_dir(&files[0])
+            .map(|dir| MitsubaPeer::next_to(&dir))
+            .ok_or("no shared scenes folder next to the scene files"),
+    };
     let progress = ProgressBar::new((files.len() * args.resolutions.len()) as u64);
     progress.set_style(
         ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg} (elapsed {elapsed})")
@@ -57,20 +62,19 @@ pub fn run(args: &BenchFrameArgs) -> Result<()> {
         let view = scene.view(None).with_context(|| format!("{} has no view", file.display()))?;
         let mut geometry = Geometry::new(&scene);
         geometry.build(|boxes| args.builder.build(boxes));
+        let name = scene_name(file);
         for &res in &args.resolutions {
-            let name = scene_name(file);
             progress.set_message(format!("{name} {res}²: ours"));
             let settings = RenderSettings { width: res, height: res, spp: 1, max_depth: scene.settings.max_depth };
             settings.check().map_err(anyhow::Error::msg)?;
             let ours = time_frames(&scene, &geometry, &view, &settings, args.warmup, args.frames);
             progress.set_message(format!("{name} {res}²: Mitsuba 3"));
             let mitsuba = match &peer {
-                None => MitsubaRun::Skipped("--no-mitsuba".into()),
-                Some(Err(())) => MitsubaRun::Skipped("no shared scenes folder next to the scene files".into()),
-                Some(Ok(p)) => p.thesis_frames(file, res, args.frames, threads, &args.out.join("mitsuba")),
+                Ok(p) => p.thesis_frames(file, res, args.frames, threads, &args.out.join("mitsuba")),
+                Err(why) => MitsubaRun::Skipped(why.to_string()),
             };
             rows.push(FrameRow {
-                scene: name,
+                scene: name.clone(),
                 triangles: geometry.triangles.len(),
                 res,
                 builder: args.builder.to_string(),

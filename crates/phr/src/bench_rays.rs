@@ -266,7 +266,7 @@ fn throughput(rays: &[Ray], repeats: usize, trace: impl Fn(&Ray) -> bool + Sync)
 }
 
 fn measure_scene(path: &Path, args: &BenchRaysArgs, progress: &ProgressBar) -> Result<(SceneInfo, Vec<Row>)> {
-    let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = phr_bench::suite::scene_name(path);
     progress.set_message(format!("{name}: loading"));
     let scene = load_scene(path).with_context(|| format!("loading {}", path.display()))?;
     let view = scene.views.first().map(|(_, c)| c.clone()).unwrap_or_else(|| scene.framing_camera());
