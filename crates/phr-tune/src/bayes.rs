@@ -7,6 +7,7 @@
 //! kernel hyper-parameters, noise term and prior fitted by maximum likelihood at every step;
 //! the expected improvement is maximised over a dense candidate grid plus random points.
 
+use crate::search_box::SearchBox;
 use friedrich::gaussian_process::GaussianProcess;
 use friedrich::kernel::SquaredExp;
 use friedrich::prior::ConstantPrior;
@@ -86,20 +87,16 @@ pub fn expected_improvement(mean: f64, std: f64, best: f64, xi: f64) -> f64 {
     (best - mean - xi) * cdf + std * pdf
 }
 
-/// Minimises `f` over the box `[lower, upper]`, starting from `initial` (already evaluated).
+/// Minimises `f` over `search`, starting from `initial` (already evaluated).
 /// Returns every observation in evaluation order.
 pub fn minimize(
     mut f: impl FnMut([f64; 2]) -> f64,
-    lower: [f64; 2],
-    upper: [f64; 2],
+    search: &SearchBox,
     initial: &[Observation],
     options: &BoOptions,
 ) -> Vec<Observation> {
     let start = Instant::now();
     let mut rng = Rng::new(options.seed);
-    let to_unit =
-        |x: [f64; 2]| [0, 1].map(|i| if upper[i] > lower[i] { (x[i] - lower[i]) / (upper[i] - lower[i]) } else { 0.0 });
-    let from_unit = |u: [f64; 2]| [0, 1].map(|i| lower[i] + u[i] * (upper[i] - lower[i]));
     let mut observations = initial.to_vec();
     let randoms_until = initial.len() + options.random_starts;
     while observations.len() < options.budget {
@@ -110,12 +107,12 @@ pub fn minimize(
             [rng.unit(), rng.unit()]
         } else {
             next_by_expected_improvement(
-                &observations.iter().map(|o| (to_unit(o.x), o.y)).collect::<Vec<_>>(),
+                &observations.iter().map(|o| (search.to_unit(o.x), o.y)).collect::<Vec<_>>(),
                 options,
                 &mut rng,
             )
         };
-        let x = from_unit(next);
+        let x = search.from_unit(next);
         let y = f(x);
         observations.push(Observation { x, y });
     }
@@ -184,7 +181,7 @@ mod tests {
         let f = |x: [f64; 2]| (x[0] - 0.47).powi(2) * 40.0 + (x[1] - 7.6).powi(2) + 1.0;
         let mut found = Vec::new();
         for seed in 0..5 {
-            let obs = minimize(f, [0.4, 6.0], [0.55, 9.0], &[], &BoOptions { seed, ..Default::default() });
+            let obs = minimize(f, &SearchBox::THESIS, &[], &BoOptions { seed, ..Default::default() });
             assert_eq!(obs.len(), 20);
             let best = obs.iter().map(|o| o.y).fold(f64::INFINITY, f64::min);
             found.push(best);
@@ -198,7 +195,7 @@ mod tests {
     #[test]
     fn finds_a_corner_minimum() {
         let f = |x: [f64; 2]| (x[0] - 0.4) * 3.0 + (x[1] - 6.0) * 0.5 + 2.0;
-        let obs = minimize(f, [0.4, 6.0], [0.55, 9.0], &[], &BoOptions { seed: 1, ..Default::default() });
+        let obs = minimize(f, &SearchBox::THESIS, &[], &BoOptions { seed: 1, ..Default::default() });
         let best = obs.iter().map(|o| o.y).fold(f64::INFINITY, f64::min);
         assert!(best < 2.0 + 0.02, "best {best}");
     }
@@ -210,8 +207,7 @@ mod tests {
                 std::thread::sleep(Duration::from_millis(20));
                 x[0]
             },
-            [0.0, 0.0],
-            [1.0, 1.0],
+            &SearchBox { lower: [0.0, 0.0], upper: [1.0, 1.0] },
             &[],
             &BoOptions { time_budget: Some(Duration::from_millis(50)), ..Default::default() },
         );
@@ -232,8 +228,7 @@ mod tests {
                 ends.push(Instant::now());
                 x[0] + x[1]
             },
-            [0.0, 0.0],
-            [1.0, 1.0],
+            &SearchBox { lower: [0.0, 0.0], upper: [1.0, 1.0] },
             &[],
             &BoOptions { budget: 40, time_budget: Some(budget), ..Default::default() },
         );

@@ -12,6 +12,7 @@ use crate::cache::{self, Maxima};
 use crate::evaluator::{Evaluation, PhrEvaluator};
 use crate::grid::evaluate_grid;
 use crate::objective::{omega, FrameTimeModel, Objective, ThesisObjective};
+use crate::search_box::SearchBox;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -33,9 +34,9 @@ pub enum ObjectiveKind {
 pub struct TuneOptions {
     pub method: Method,
     pub objective: ObjectiveKind,
-    /// The search box: (α, δ) from `lower` to `upper`.
-    pub lower: [f64; 2],
-    pub upper: [f64; 2],
+    /// The box searched (Bayesian optimisation) or whose corners normalise the thesis's
+    /// objective when it is not cached.
+    pub search: SearchBox,
     /// Where to cache the thesis objective's maxima, and under which key.
     pub cache: Option<(PathBuf, String)>,
 }
@@ -63,8 +64,8 @@ pub fn tune(evaluator: &PhrEvaluator, options: &TuneOptions) -> TuneResult {
             let objective = make_objective(evaluator, options, || {
                 let cached = options.cache.as_ref().and_then(|(path, key)| cache::load(path, key));
                 cached.unwrap_or_else(|| {
-                    let low = evaluator.evaluate(options.lower[0], options.lower[1]);
-                    let high = evaluator.evaluate(options.upper[0], options.upper[1]);
+                    let [lower, upper] = [options.search.lower, options.search.upper];
+                    let (low, high) = (evaluator.evaluate(lower[0], lower[1]), evaluator.evaluate(upper[0], upper[1]));
                     initial_evals.extend([low, high]);
                     let m = maxima_of(&[low, high]);
                     if let Some((path, key)) = &options.cache {
@@ -76,13 +77,8 @@ pub fn tune(evaluator: &PhrEvaluator, options: &TuneOptions) -> TuneResult {
             });
             let initial: Vec<Observation> =
                 initial_evals.iter().map(|e| Observation { x: [e.alpha, e.delta], y: objective.value(e) }).collect();
-            let observations = minimize(
-                |x| objective.value(&evaluator.evaluate(x[0], x[1])),
-                options.lower,
-                options.upper,
-                &initial,
-                bo,
-            );
+            let observations =
+                minimize(|x| objective.value(&evaluator.evaluate(x[0], x[1])), &options.search, &initial, bo);
             let evals = observations.iter().map(|o| evaluator.evaluate(o.x[0], o.x[1])).collect();
             (objective, evals)
         }

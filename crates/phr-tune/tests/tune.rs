@@ -8,7 +8,7 @@ use phr_tune::bayes::BoOptions;
 use phr_tune::grid::linspace;
 use phr_tune::objective::FrameTimeModel;
 use phr_tune::tune::{tune, Method, ObjectiveKind, TuneOptions};
-use phr_tune::PhrEvaluator;
+use phr_tune::{PhrEvaluator, SearchBox};
 
 fn soup(n: usize) -> Vec<Aabb> {
     let mut s = 7u64;
@@ -27,7 +27,7 @@ fn soup(n: usize) -> Vec<Aabb> {
 }
 
 fn options(method: Method, objective: ObjectiveKind) -> TuneOptions {
-    TuneOptions { method, objective, lower: [0.4, 6.0], upper: [0.55, 9.0], cache: None }
+    TuneOptions { method, objective, search: SearchBox::THESIS, cache: None }
 }
 
 /// A frame-time model whose optimum lies inside the box: build cost and trace cost compete.

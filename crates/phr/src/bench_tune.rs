@@ -18,10 +18,10 @@ use phr_render::output::write_atomically;
 use phr_render::scene::load_scene;
 use phr_render::scene::RenderSettings;
 use phr_tune::bayes::BoOptions;
-use phr_tune::grid::{linspace, THESIS_ALPHAS, THESIS_DELTAS};
+use phr_tune::grid::{THESIS_ALPHAS, THESIS_DELTAS};
 use phr_tune::objective::{OMEGA_P, OMEGA_R};
 use phr_tune::tune::{tune, Method, ObjectiveKind, TuneOptions};
-use phr_tune::PhrEvaluator;
+use phr_tune::{PhrEvaluator, SearchBox};
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -46,8 +46,6 @@ pub struct BenchTuneArgs {
     csv: PathBuf,
 }
 
-const LOWER: [f64; 2] = [0.4, 6.0];
-const UPPER: [f64; 2] = [0.55, 9.0];
 const MAX_DEPTH: u32 = 6;
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -87,19 +85,17 @@ pub fn run(args: &BenchTuneArgs) -> Result<()> {
         let scene = load_scene(&dir.join(name))?;
         let mut geometry = Geometry::new(&scene);
         let evaluator = PhrEvaluator::new(&geometry.boxes, PhrOptions::FAST);
-        let dense = Method::Grid {
-            alphas: linspace(LOWER[0], UPPER[0], args.dense),
-            deltas: linspace(LOWER[1], UPPER[1], args.dense),
-        };
+        let (alphas, deltas) = SearchBox::THESIS.grid(args.dense);
+        let dense = Method::Grid { alphas, deltas };
         for &res in &args.resolutions {
             progress.set_message(format!("{name} at {res}²"));
             let view = scene.framing_camera();
             let size = RenderSettings { width: res, height: res, spp: 1, max_depth: MAX_DEPTH };
             let thesis = ObjectiveKind::Thesis { width: res, height: res, omega_p: OMEGA_P, omega_r: OMEGA_R };
-            let model = calibrate(&evaluator, &scene, &mut geometry, &view, &size, [LOWER, UPPER]);
+            let model = calibrate(&evaluator, &scene, &mut geometry, &view, &size, &SearchBox::THESIS);
             let frame_time = ObjectiveKind::FrameTime(model);
             let options =
-                |method: Method, objective| TuneOptions { method, objective, lower: LOWER, upper: UPPER, cache: None };
+                |method: Method, objective| TuneOptions { method, objective, search: SearchBox::THESIS, cache: None };
             let mut gaps = Vec::new();
             let mut bo_choice = Vec::new();
             for objective in [thesis, frame_time] {

@@ -18,7 +18,7 @@ use phr_tune::bayes::BoOptions;
 use phr_tune::grid::{THESIS_ALPHAS, THESIS_DELTAS};
 use phr_tune::objective::{FrameTimeModel, OMEGA_P, OMEGA_R};
 use phr_tune::tune::{tune, Method, ObjectiveKind, TuneOptions, TuneResult};
-use phr_tune::PhrEvaluator;
+use phr_tune::{PhrEvaluator, SearchBox};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -106,11 +106,12 @@ pub fn calibrate(
     geometry: &mut Geometry,
     view: &CameraDesc,
     settings: &RenderSettings,
-    corners: [[f64; 2]; 2],
+    search: &SearchBox,
 ) -> FrameTimeModel {
     let mut builds = Vec::new();
     let mut renders = Vec::new();
     let mut rays_sum = 0.0;
+    let corners = [search.lower, search.upper];
     for [a, d] in corners {
         let e = evaluator.evaluate(a, d);
         let (ms, rays) = measure_frame(scene, geometry, evaluator.build(a, d), view, settings);
@@ -139,14 +140,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         bar.inc(1);
         bar.set_message(format!("last α {:.3} δ {:.2}", e.alpha, e.delta));
     });
-    let lower = [
-        args.alphas.iter().copied().fold(f64::INFINITY, f64::min),
-        args.deltas.iter().copied().fold(f64::INFINITY, f64::min),
-    ];
-    let upper = [
-        args.alphas.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-        args.deltas.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-    ];
+    let search = SearchBox::spanning(&args.alphas, &args.deltas);
     let objective = match args.objective {
         ObjectiveArg::Thesis => ObjectiveKind::Thesis {
             width: args.width,
@@ -155,7 +149,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
             omega_r: args.omega_r,
         },
         ObjectiveArg::FrameTime => {
-            ObjectiveKind::FrameTime(calibrate(&evaluator, &scene, &mut geometry, &view, &size, [lower, upper]))
+            ObjectiveKind::FrameTime(calibrate(&evaluator, &scene, &mut geometry, &view, &size, &search))
         }
     };
     let method = match args.method {
@@ -167,9 +161,8 @@ pub fn run(args: &TuneArgs) -> Result<()> {
             ..Default::default()
         }),
     };
-    let key = format!("{}|{}|{:?}|{:?}", args.scene, geometry.prim_count(), lower, upper);
-    let result =
-        tune(&evaluator, &TuneOptions { method, objective, lower, upper, cache: Some((args.cache.clone(), key)) });
+    let key = format!("{}|{}|{:?}|{:?}", args.scene, geometry.prim_count(), search.lower, search.upper);
+    let result = tune(&evaluator, &TuneOptions { method, objective, search, cache: Some((args.cache.clone(), key)) });
     progress.finish_and_clear();
     report(args, &result);
     let (a, d) = (result.best.alpha, result.best.delta);

@@ -17,7 +17,7 @@ use phr_tune::bayes::BoOptions;
 use phr_tune::grid::{THESIS_ALPHAS, THESIS_DELTAS};
 use phr_tune::objective::{OMEGA_P, OMEGA_R};
 use phr_tune::tune::{tune, Method, ObjectiveKind, TuneOptions};
-use phr_tune::PhrEvaluator;
+use phr_tune::{PhrEvaluator, SearchBox};
 use std::path::Path;
 use std::time::Instant;
 
@@ -238,8 +238,7 @@ pub fn measure_scene(
 /// tuning time returned.
 fn resolve_builder(name: &str, evaluator: &PhrEvaluator, res: u32) -> Result<(Builder, Option<f64>)> {
     let thesis = ObjectiveKind::Thesis { width: res, height: res, omega_p: OMEGA_P, omega_r: OMEGA_R };
-    let box_options =
-        |method| TuneOptions { method, objective: thesis, lower: [0.4, 6.0], upper: [0.55, 9.0], cache: None };
+    let box_options = |method| TuneOptions { method, objective: thesis, search: SearchBox::THESIS, cache: None };
     let tuned = |method| {
         let start = Instant::now();
         let r = tune(evaluator, &box_options(method));

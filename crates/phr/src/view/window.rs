@@ -620,8 +620,8 @@ fn save_render(pipeline: &FramePipeline, out: &std::path::Path, saved: &mut u32)
     format!("saved {}.png and .exr ({} spp)", stem.display(), pipeline.samples())
 }
 
-/// Bayesian optimisation of α and δ (20 PHR builds) for the current geometry and image size,
-/// with the thesis's objective.
+/// Bayesian optimisation of α and δ (20 PHR builds) over the thesis's box, for the current
+/// geometry and image size, with the thesis's objective: the search `phr bench`'s PHR-BO runs.
 fn tune(pipeline: &FramePipeline, shared: &Shared, ctx: &egui::Context) {
     use phr_tune::bayes::BoOptions;
     use phr_tune::objective::{OMEGA_P, OMEGA_R};
@@ -641,8 +641,7 @@ fn tune(pipeline: &FramePipeline, shared: &Shared, ctx: &egui::Context) {
             omega_p: OMEGA_P,
             omega_r: OMEGA_R,
         },
-        lower: [0.3, 4.0],
-        upper: [0.7, 12.0],
+        search: phr_tune::SearchBox::THESIS,
         cache: None,
     };
     let result = tune(&evaluator, &options);
