@@ -3,7 +3,7 @@
 use anyhow::{Context, Result};
 use glam::Vec3;
 use phr_render::material::Material;
-use phr_render::scene::json::load_scene_file;
+use phr_render::scene::load_scene;
 use phr_render::scene::Background;
 use phr_render::Scene;
 use std::path::{Path, PathBuf};
@@ -52,7 +52,7 @@ pub fn apply_thesis_setting(scene: &mut Scene) {
 
 /// Loads a suite scene file in the thesis's setting.
 pub fn load_thesis_scene(path: &Path) -> Result<Scene> {
-    let mut scene = load_scene_file(path).with_context(|| format!("loading {}", path.display()))?;
+    let mut scene = load_scene(path).with_context(|| format!("loading {}", path.display()))?;
     apply_thesis_setting(&mut scene);
     Ok(scene)
 }

@@ -18,7 +18,7 @@ use phr_render::geometry::Geometry;
 use phr_render::lights::LightSet;
 use phr_render::output::write_image;
 use phr_render::render::Renderer;
-use phr_render::scene::json::load_scene_file;
+use phr_render::scene::load_scene;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
@@ -89,7 +89,7 @@ fn check_against_reference(name: &'static str, spp: u32) {
 fn check_with(reference: &Reference, spp: u32, nee: bool) {
     let (name, scene_file) = (reference.name, &reference.scene);
     assert!(scene_file.is_file(), "missing {} (shared/ must sit next to the repository)", scene_file.display());
-    let scene = load_scene_file(scene_file).unwrap();
+    let scene = load_scene(scene_file).unwrap();
     let mut geometry = Geometry::new(&scene);
     geometry.build(|b| Builder::default().build(b));
     let lights = nee.then(|| LightSet::new(&geometry, &scene.materials));

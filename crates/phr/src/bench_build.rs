@@ -14,10 +14,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::{sah_cost, Builder, Ray, SahConstants};
 use phr_render::camera::Camera;
 use phr_render::geometry::Geometry;
-use phr_render::load::load_mesh;
 use phr_render::output::write_atomically;
 use phr_render::sampler::Pcg32;
-use phr_render::scene::{Mesh, Scene};
+use phr_render::scene::{load_scene, Scene};
 use rayon::prelude::*;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -88,17 +87,10 @@ pub fn scenes_folder(given: &Option<PathBuf>) -> Result<PathBuf> {
     }
 }
 
-/// One mesh as renderable geometry (every triangle with material 0).
-pub fn mesh_geometry(dir: &Path, name: &str) -> Result<(Geometry, Scene)> {
-    let data = load_mesh(&dir.join(name))?;
-    let n = data.triangles.len();
-    let mut scene = Scene::default();
-    scene.meshes.push(Mesh {
-        name: name.into(),
-        positions: data.positions,
-        triangles: data.triangles,
-        triangle_material: vec![0; n],
-    });
+/// One mesh of the shared scenes, as a scene (its materials, a camera framing it) and its
+/// geometry.
+pub fn open_mesh(dir: &Path, name: &str) -> Result<(Geometry, Scene)> {
+    let scene = load_scene(&dir.join(name))?;
     Ok((Geometry::new(&scene), scene))
 }
 
@@ -122,7 +114,7 @@ pub fn run(args: &BenchBuildArgs) -> Result<()> {
     );
     let mut rows = Vec::new();
     for name in meshes {
-        let (mut geometry, scene) = mesh_geometry(&dir, name)?;
+        let (mut geometry, scene) = open_mesh(&dir, name)?;
         let camera = Camera::new(&scene.framing_camera(), args.res, args.res);
         geometry.build(|b| Builder::default().build(b));
         let rays = RaySet::new(&geometry, &camera, args.res);

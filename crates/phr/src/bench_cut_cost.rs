@@ -3,7 +3,7 @@
 //! LBVH over a grid of α and δ; the Pearson correlation of Σ|cut| with the median build time
 //! is printed per mesh, and every point goes to a CSV.
 
-use crate::bench_build::{mesh_geometry, scenes_folder, MESHES};
+use crate::bench_build::{open_mesh, scenes_folder, MESHES};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -65,7 +65,7 @@ pub fn run(args: &BenchCutCostArgs) -> Result<()> {
     println!("{:<36} {:>7} {:>12} {:>12}", "mesh", "points", "corr(b, ms)", "ms per Mcut");
     for name in meshes {
         progress.set_message(name.to_string());
-        let (geometry, _) = mesh_geometry(&dir, name)?;
+        let (geometry, _) = open_mesh(&dir, name)?;
         let aux = build_lbvh(&geometry.boxes, PHR_AUX);
         let counts = AuxCounts::new(&aux);
         let (mut costs, mut times) = (Vec::new(), Vec::new());

@@ -6,16 +6,14 @@
 //!   from the mesh's framing camera): LBVH, PHR-Fast, PHR-HQ, PHR-Grid (the thesis's 4 × 4
 //!   grid, thesis objective), PHR-BO with the thesis objective and with the frame-time model.
 
-use crate::bench_build::{scenes_folder, MESHES};
+use crate::bench_build::{open_mesh, scenes_folder, MESHES};
 use crate::tune::{calibrate, measure_frame};
 use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::phr::PhrOptions;
 use phr_bvh::Builder;
-use phr_render::geometry::Geometry;
 use phr_render::output::write_atomically;
-use phr_render::scene::load_scene;
 use phr_render::scene::RenderSettings;
 use phr_tune::bayes::BoOptions;
 use phr_tune::grid::{THESIS_ALPHAS, THESIS_DELTAS};
@@ -82,8 +80,7 @@ pub fn run(args: &BenchTuneArgs) -> Result<()> {
         "BO(T) ms"
     );
     for name in meshes {
-        let scene = load_scene(&dir.join(name))?;
-        let mut geometry = Geometry::new(&scene);
+        let (mut geometry, scene) = open_mesh(&dir, name)?;
         let evaluator = PhrEvaluator::new(&geometry.boxes, PhrOptions::FAST);
         let (alphas, deltas) = SearchBox::THESIS.grid(args.dense);
         let dense = Method::Grid { alphas, deltas };

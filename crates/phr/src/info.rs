@@ -9,7 +9,8 @@ use std::time::Instant;
 
 #[derive(Args)]
 pub struct InfoArgs {
-    /// A scene file (.json), a mesh file, or `builtin`.
+    /// A scene file (.json), a mesh (.obj, .ply, .gltf, .glb, optionally .gz), `builtin`, or a
+    /// scene of scenes/suite by name (sponza, dragon, ...).
     #[arg(default_value = BUILTIN)]
     pub scene: String,
     /// BVH builder: lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah, binned-sah.

@@ -17,7 +17,8 @@ use std::time::Instant;
 
 #[derive(Args, Clone)]
 pub struct RenderArgs {
-    /// A scene file (.json), a mesh (.obj, .ply, .gltf, .glb, optionally .gz), or `builtin`.
+    /// A scene file (.json), a mesh (.obj, .ply, .gltf, .glb, optionally .gz), `builtin`, or a
+    /// scene of scenes/suite by name (sponza, dragon, ...).
     #[arg(default_value = BUILTIN)]
     pub scene: String,
     /// Named view of the scene (default: its first).

@@ -38,7 +38,8 @@ pub enum ObjectiveArg {
 
 #[derive(Args)]
 pub struct TuneArgs {
-    /// A scene file (.json), a mesh file, or `builtin`.
+    /// A scene file (.json), a mesh (.obj, .ply, .gltf, .glb, optionally .gz), `builtin`, or a
+    /// scene of scenes/suite by name (sponza, dragon, ...).
     #[arg(default_value = BUILTIN)]
     pub scene: String,
     #[arg(long)]

@@ -253,7 +253,7 @@ fn quick_bench_writes_consistent_report_tables_and_plots() {
 fn suite_scenes_load_with_three_views() {
     let dir = repo_path("scenes/suite");
     for name in ["bunny", "sponza", "sibenik", "dragon", "conference", "dragons8"] {
-        let scene = phr_render::scene::json::load_scene_file(&dir.join(format!("{name}.json"))).unwrap();
+        let scene = phr_render::scene::load_scene(&dir.join(format!("{name}.json"))).unwrap();
         assert_eq!(scene.views.len(), 3, "{name}");
         assert_eq!(scene.settings.max_depth, 6, "{name}: 5 bounces");
         assert!(scene.triangle_count() > 60_000, "{name}");

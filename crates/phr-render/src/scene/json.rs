@@ -299,8 +299,8 @@ impl TransformFile {
     }
 }
 
-/// Reads a scene file.
-pub fn load_scene_file(path: &Path) -> Result<Scene, LoadError> {
+/// Reads a scene file (through [`super::load_scene`], the one way to open a scene).
+pub(crate) fn load_scene_file(path: &Path) -> Result<Scene, LoadError> {
     let bytes = crate::load::input::read_file(path, "the scene file")?;
     let text = std::str::from_utf8(crate::load::input::strip_bom(&bytes))
         .map_err(|e| LoadError::new(path, format!("not UTF-8 text: {e}")))?;

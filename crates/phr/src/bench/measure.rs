@@ -10,7 +10,7 @@ use phr_bvh::{PackedTriangles, WideBvh};
 use phr_render::camera::Camera;
 use phr_render::geometry::Geometry;
 use phr_render::output::write_heatmap;
-use phr_render::scene::json::load_scene_file;
+use phr_render::scene::load_scene;
 use phr_render::scene::RenderSettings;
 use phr_render::Scene;
 use phr_tune::bayes::BoOptions;
@@ -147,7 +147,7 @@ pub fn measure_scene(
     progress: &ProgressBar,
     results: &mut Results,
 ) -> Result<()> {
-    let mut scene = load_scene_file(path)?;
+    let mut scene = load_scene(path)?;
     if plan.materials == super::Materials::Thesis {
         phr_bench::suite::apply_thesis_setting(&mut scene);
     }

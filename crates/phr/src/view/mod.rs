@@ -16,7 +16,8 @@ use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct ViewArgs {
-    /// A scene file (.json), a mesh file, or `builtin`.
+    /// A scene file (.json), a mesh (.obj, .ply, .gltf, .glb, optionally .gz), `builtin`, or a
+    /// scene of scenes/suite by name (sponza, dragon, ...).
     #[arg(default_value = BUILTIN)]
     scene: String,
     /// Run without a window: render --frames frames and write PNGs and frames.csv to --out.
