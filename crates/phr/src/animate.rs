@@ -1,35 +1,39 @@
-//! `phr animate`: the dynamic-scene pipeline of thesis section 5.3, frame after frame: move
-//! the vertices, refit the auxiliary LBVH, rebuild the render BVH with PHR, render one sample
-//! per pixel. Writes a CSV of per-frame timings and, if asked, the frames as PNG.
+//! `phr animate`: the dynamic-scene pipeline of thesis section 5.3, frame after frame, through
+//! [`FramePipeline`] (the viewer's frame loop, so both report the same frame time): pose the
+//! moving objects, refit the auxiliary LBVH, rebuild the render BVH with PHR, collapse it to
+//! the wide BVH, render one sample per pixel. The motion is the scene's own animation or one
+//! applied to every mesh. Writes a CSV of per-frame timings and, if asked, the frames as PNG.
 
 use crate::scene_arg::{open_scene, BUILTIN};
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
-use glam::{Quat, Vec3};
+use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
-use phr_bvh::dynamic::DynamicBvh;
-use phr_bvh::{sah_cost, Builder, SahConstants};
-use phr_render::camera::Camera;
-use phr_render::geometry::Geometry;
-use phr_render::integrator::PathTracer;
+use phr_bvh::Builder;
+use phr_render::animation::{Animation, AnimationTarget, Motion as VertexMotion, ObjectAnimation};
 use phr_render::output::{write_atomically, write_image};
-use phr_render::render::Renderer;
-use rayon::prelude::*;
+use phr_render::pipeline::{FramePipeline, FrameReport, PipelineSettings, ViewMode};
+use phr_render::Scene;
 use std::io::Write;
 use std::path::PathBuf;
-use std::time::Instant;
+
+/// Animation time per frame, in seconds.
+const FRAME_DT: f32 = 1.0 / 30.0;
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum Motion {
-    /// Every triangle turns about the vertical axis through the scene's centre.
+    /// Every mesh turns about the vertical axis through the scene's centre (0.5 rad/s).
     Spin,
     /// A travelling wave displaces vertices vertically (a deformation).
     Wave,
+    /// The scene's own animation (a scene file's `animate`, glTF animations).
+    Scene,
 }
 
 #[derive(Args)]
 pub struct AnimateArgs {
-    /// A scene file (.json), a mesh file, or `builtin`.
+    /// A scene file (.json), a mesh (.obj, .ply, .gltf, .glb, optionally .gz), `builtin`, or a
+    /// scene of scenes/suite by name (sponza, dragon, ...).
     #[arg(default_value = BUILTIN)]
     scene: String,
     #[arg(long, default_value_t = 100)]
@@ -54,18 +58,25 @@ pub struct AnimateArgs {
 }
 
 pub fn run(args: &AnimateArgs) -> Result<()> {
-    let Builder::Phr(options) = args.builder else {
+    if !matches!(args.builder, Builder::Phr(_)) {
         bail!("animate rebuilds with PHR: use phr-fast, phr-hq or phr:ALPHA,DELTA")
-    };
+    }
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let scene = open_scene(&args.scene)?;
+    let mut scene = open_scene(&args.scene)?;
     let view = scene.view(args.view.as_deref()).with_context(|| format!("no view {:?}", args.view))?;
-    let mut geometry = Geometry::new(&scene);
-    let rest = geometry.triangles.clone();
-    let centre = scene.bounds().center();
-    let size = scene.bounds().extent().max_element();
-    let mut dynamic = DynamicBvh::new(&geometry.boxes, options);
-    let camera = Camera::new(&view, args.width, args.height);
+    attach_motion(&mut scene, args.motion);
+    if scene.animations.is_empty() {
+        bail!("{}: nothing moves (the scene has no animation of its own; try --motion spin)", args.scene);
+    }
+    let settings = PipelineSettings {
+        builder: args.builder,
+        width: args.width,
+        height: args.height,
+        max_depth: scene.settings.max_depth.min(8),
+        mode: ViewMode::Colour,
+        explicit_lights: false,
+    };
+    let mut pipeline = FramePipeline::new(scene, settings, view);
     let progress = ProgressBar::new(args.frames as u64);
     progress.set_style(
         ProgressStyle::with_template("{spinner} animating [{bar:30}] {pos}/{len} frames {msg}")
@@ -74,108 +85,91 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
     );
     let mut rows = Vec::new();
     for frame in 0..args.frames {
-        let time = frame as f32 / 30.0;
-        let start = Instant::now();
-        let motion = args.motion;
-        geometry.triangles.par_iter_mut().zip(rest.par_iter()).for_each(|(t, r)| {
-            *t = r.map(|v| move_vertex(motion, v, centre, size, time));
-        });
-        geometry.update_boxes();
-        let animate_ms = start.elapsed().as_secs_f64() * 1e3;
-        let (bvh, timings) = dynamic.update(&geometry.boxes);
-        geometry.set_bvh(bvh);
-        let render_start = Instant::now();
-        let renderer = Renderer {
-            tracer: PathTracer {
-                geometry: &geometry,
-                materials: &scene.materials,
-                background: &scene.background,
-                max_depth: scene.settings.max_depth.min(8),
-                lights: None,
-            },
-            camera: camera.clone(),
-            width: args.width,
-            height: args.height,
-            seed: frame as u64,
-        };
-        let (pixels, stats) = renderer.render_frame(0);
-        let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
+        let report = pipeline.step(FRAME_DT);
         if args.png {
             let path = args.out.join(format!("frame{frame:05}.png"));
-            write_image(&path, args.width, args.height, &pixels)
+            write_image(&path, args.width, args.height, &pipeline.image())
                 .with_context(|| format!("writing {}", path.display()))?;
         }
-        let refit_ms = timings.refit.as_secs_f64() * 1e3;
-        let build_ms = timings.build.as_secs_f64() * 1e3;
-        let row = FrameRow {
-            frame,
-            animate_ms,
-            refit_ms,
-            build_ms,
-            render_ms,
-            frame_ms: animate_ms + refit_ms + build_ms + render_ms,
-            build_cost: timings.build_cost,
-            sah: sah_cost(geometry.bvh(), SahConstants::UNIT),
-            mrays: stats.rays as f64 / render_ms / 1e3,
-        };
-        progress.set_message(format!("{:.1} ms/frame", row.frame_ms));
+        progress.set_message(format!("{:.1} ms/frame", report.frame_ms));
         progress.inc(1);
-        rows.push(row);
+        rows.push(report);
     }
     progress.finish_and_clear();
     let csv = args.out.join("frames.csv");
     write_csv(&csv, &rows).with_context(|| format!("writing {}", csv.display()))?;
-    let median = |f: fn(&FrameRow) -> f64| {
+    print_summary(args, pipeline.geometry().triangles.len(), &rows);
+    println!("wrote {}", csv.display());
+    Ok(())
+}
+
+/// Attaches the motion to every mesh of `scene` (replacing the scene's own animation), or
+/// keeps the scene's own.
+fn attach_motion(scene: &mut Scene, motion: Motion) {
+    let bounds = scene.bounds();
+    let (centre, size) = (bounds.center(), bounds.extent().max_element().max(f32::MIN_POSITIVE));
+    let motion = match motion {
+        Motion::Scene => return,
+        Motion::Spin => VertexMotion::Rotate { axis: Vec3::Y, pivot: centre, degrees_per_second: 0.5f32.to_degrees() },
+        // 12 radians of phase across the scene's size, 3 radians per second: the wave moves
+        // towards -x at a quarter of the scene per second.
+        Motion::Wave => VertexMotion::Wave {
+            amplitude: 0.03 * size,
+            wavelength: std::f32::consts::TAU * size / 12.0,
+            period: std::f32::consts::TAU / 3.0,
+            direction: -Vec3::X,
+            displacement: -Vec3::Y,
+        },
+    };
+    scene.animations = (0..scene.meshes.len())
+        .map(|m| ObjectAnimation {
+            target: AnimationTarget::Mesh(m),
+            animation: Animation::Procedural(vec![motion.clone()]),
+        })
+        .collect();
+}
+
+fn print_summary(args: &AnimateArgs, triangles: usize, rows: &[FrameReport]) {
+    let median = |f: fn(&FrameReport) -> f64| {
         let mut v: Vec<f64> = rows.iter().map(f).collect();
         v.sort_by(f64::total_cmp);
         v.get(v.len() / 2).copied().unwrap_or(0.0)
     };
     println!(
-        "{} frames of {} ({} triangles, {}x{}, 1 spp): median refit {:.2} ms, {} build {:.2} ms, render {:.2} ms, frame {:.2} ms ({:.1} fps)",
+        "{} frames of {} ({} triangles, {}x{}, 1 spp): median refit {:.2} ms, {} build {:.2} ms, wide BVH {:.2} ms, render {:.2} ms, frame {:.2} ms ({:.1} fps)",
         rows.len(),
         args.scene,
-        geometry.triangles.len(),
+        triangles,
         args.width,
         args.height,
         median(|r| r.refit_ms),
         args.builder,
         median(|r| r.build_ms),
+        median(|r| r.wide_ms),
         median(|r| r.render_ms),
         median(|r| r.frame_ms),
         1e3 / median(|r| r.frame_ms).max(1e-9)
     );
-    println!("wrote {}", csv.display());
-    Ok(())
 }
 
-fn move_vertex(motion: Motion, v: Vec3, centre: Vec3, size: f32, time: f32) -> Vec3 {
-    match motion {
-        Motion::Spin => centre + Quat::from_rotation_y(0.5 * time) * (v - centre),
-        Motion::Wave => v + Vec3::Y * (0.03 * size) * ((v.x - centre.x) / size * 12.0 + 3.0 * time).sin(),
-    }
-}
-
-struct FrameRow {
-    frame: u32,
-    animate_ms: f64,
-    refit_ms: f64,
-    build_ms: f64,
-    render_ms: f64,
-    frame_ms: f64,
-    build_cost: u64,
-    sah: f64,
-    mrays: f64,
-}
-
-fn write_csv(path: &std::path::Path, rows: &[FrameRow]) -> std::io::Result<()> {
+fn write_csv(path: &std::path::Path, rows: &[FrameReport]) -> std::io::Result<()> {
     write_atomically(path, |tmp| {
         let mut f = std::io::BufWriter::new(std::fs::File::create(tmp)?);
-        writeln!(f, "frame,animate_ms,refit_ms,build_ms,render_ms,frame_ms,build_cost,sah_cost,mrays_per_s")?;
+        writeln!(f, "frame,animate_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,build_cost,sah_cost,mrays_per_s")?;
         for r in rows {
             writeln!(
                 f,
-                "{},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.4},{:.3}",
-                r.frame, r.animate_ms, r.refit_ms, r.build_ms, r.render_ms, r.frame_ms, r.build_cost, r.sah, r.mrays
+                "{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.4},{:.3}",
+                r.frame,
+                r.pose_ms,
+                r.refit_ms,
+                r.build_ms,
+                r.wide_ms,
+                r.render_ms,
+                r.frame_ms,
+                r.build_cost,
+                r.sah_cost,
+                r.mrays_per_s()
             )?;
         }
         f.flush()
