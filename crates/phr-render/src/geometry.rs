@@ -128,12 +128,16 @@ impl Geometry {
 
     /// Sets the BVH (built over [`Geometry::boxes`] of the current triangles) and derives the
     /// wide tree and the packed triangles the queries use. Call it again after the triangles
-    /// move.
-    pub fn set_bvh(&mut self, bvh: Bvh) {
+    /// move. Returns the time the collapse and the packing took: the one measurement of that
+    /// step, which the frame pipeline and the benchmarks report.
+    pub fn set_bvh(&mut self, bvh: Bvh) -> std::time::Duration {
+        let start = std::time::Instant::now();
         // Into the previous frame's memory: in a dynamic scene this runs every frame.
         self.wide.rebuild(&bvh);
         self.packed.repack(&self.wide.prim_indices, &self.triangles);
+        let elapsed = start.elapsed();
         self.bvh = bvh;
+        elapsed
     }
 
     /// Bytes held, by part: the triangles (vertices and material indices), the primitive
