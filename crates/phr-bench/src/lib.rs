@@ -3,14 +3,41 @@
 //! - [`suite`]: the scene suite of `scenes/suite` and the thesis's benchmark setting;
 //! - [`stats`]: medians and spreads of repeated measurements;
 //! - [`frame`]: timed 1-spp frames of our renderer;
-//! - [`mitsuba`]: the same frame rendered by Mitsuba 3 (the peer of the frame benchmark).
+//! - [`mitsuba`]: the same frame rendered by Mitsuba 3 (the peer of the frame benchmark);
+//! - [`rays`]: the ray sets (primary, diffuse bounces, incoherent, shadow), made one way;
+//! - [`oracle`]: brute force and the binary reference traversal, which every hit is checked
+//!   against;
+//! - [`throughput`]: the one Mrays/s measurement and the one work-per-ray count;
+//! - [`peer`]: exporting triangles and rays to a Python peer and reading its JSON;
+//! - [`ray_bench`], [`ray_report`]: `phr bench-rays` (our traversals against Embree).
 //!
 //! The command-line front end parses arguments, calls these, and prints.
 
 pub mod frame;
 pub mod frame_report;
 pub mod mitsuba;
+pub mod oracle;
+pub mod peer;
+pub mod ray_bench;
+pub mod ray_report;
+pub mod rays;
 pub mod stats;
 pub mod suite;
+pub mod throughput;
 
 pub use stats::Stat;
+
+/// Where a long measurement tells what it is doing: a front end shows `status` (the current
+/// step, replaced by the next) and keeps `note`s (warnings, skipped peers) in view.
+pub trait Progress {
+    fn status(&self, message: String);
+    fn note(&self, message: String);
+}
+
+/// No progress shown (tests, scripts).
+pub struct Quiet;
+
+impl Progress for Quiet {
+    fn status(&self, _: String) {}
+    fn note(&self, _: String) {}
+}

@@ -10,17 +10,15 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
+use phr_bench::rays::RaySet;
+use phr_bench::throughput::{mean_counts, throughput};
 use phr_bvh::{sah_cost, Builder, Ray, SahConstants};
 use phr_render::camera::Camera;
 use phr_render::geometry::Geometry;
 use phr_render::output::write_atomically;
-use phr_render::sampler::Pcg32;
 use phr_render::scene::{load_scene, Scene};
-use rayon::prelude::*;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 /// The meshes of `shared/scenes`, by path below it.
 pub const MESHES: &[&str] = &[
@@ -106,12 +104,7 @@ pub fn run(args: &BenchBuildArgs) -> Result<()> {
         .copied()
         .filter(|m| args.only.is_empty() || args.only.iter().any(|o| m.contains(o.as_str())))
         .collect();
-    let progress = ProgressBar::new((meshes.len() * args.threads.len() * builders.len()) as u64);
-    progress.set_style(
-        ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg} (eta {eta})")
-            .expect("template")
-            .progress_chars("=> "),
-    );
+    let progress = crate::progress::bar((meshes.len() * args.threads.len() * builders.len()) as u64);
     let mut rows = Vec::new();
     for name in meshes {
         let (mut geometry, scene) = open_mesh(&dir, name)?;
@@ -134,31 +127,6 @@ pub fn run(args: &BenchBuildArgs) -> Result<()> {
     Ok(())
 }
 
-/// Primary rays and one diffuse bounce from each primary hit.
-pub struct RaySet {
-    pub primary: Vec<Ray>,
-    pub diffuse: Vec<Ray>,
-}
-
-impl RaySet {
-    pub fn new(geometry: &Geometry, camera: &Camera, res: u32) -> Self {
-        let primary: Vec<Ray> =
-            (0..res * res).map(|i| camera.ray((i % res) as f32 + 0.5, (i / res) as f32 + 0.5)).collect();
-        let diffuse = primary
-            .par_iter()
-            .enumerate()
-            .filter_map(|(i, ray)| {
-                let hit = geometry.intersect(ray)?;
-                let s = geometry.surface_point(ray, &hit);
-                let facing = if s.front { s.normal } else { -s.normal };
-                let dir = (facing + Pcg32::for_pixel(1, 0, i as u32).unit_vector()).normalize_or(facing);
-                Some(Ray::new(s.spawn_origin(dir), dir))
-            })
-            .collect();
-        Self { primary, diffuse }
-    }
-}
-
 fn measure(
     name: &str,
     geometry: &mut Geometry,
@@ -179,9 +147,13 @@ fn measure(
     let (aux_ms, build_ms, total_ms) = (ms(report.aux_time), ms(report.build_time), ms(report.total_time()));
     let build_cost = report.phr.map(|s| s.build_cost);
     geometry.set_bvh(report.bvh);
-    let primary_mrays = throughput(geometry, &rays.primary);
-    let diffuse_mrays = throughput(geometry, &rays.diffuse);
-    let (diffuse_nodes_per_ray, diffuse_prims_per_ray) = traversal_work(geometry, &rays.diffuse);
+    let trace = |r: &Ray| geometry.intersect(r).is_some();
+    let (primary_mrays, diffuse_mrays) = (throughput(&rays.primary, 3, trace), throughput(&rays.diffuse, 3, trace));
+    let [diffuse_nodes_per_ray, diffuse_prims_per_ray] = mean_counts(&rays.diffuse, |r| {
+        let mut s = phr_bvh::TraversalStats::default();
+        geometry.intersect_counted(r, &mut s);
+        [s.nodes as u64, s.prims as u64]
+    });
     Row {
         mesh: name.into(),
         triangles: geometry.triangles.len(),
@@ -198,33 +170,6 @@ fn measure(
         diffuse_nodes_per_ray,
         diffuse_prims_per_ray,
     }
-}
-
-/// Closest-hit Mrays/s over `rays` (chunks of 256 consecutive rays per task), best of 3.
-pub fn throughput(geometry: &Geometry, rays: &[Ray]) -> f64 {
-    let mut best = f64::INFINITY;
-    for _ in 0..3 {
-        let start = Instant::now();
-        let hits: usize =
-            rays.par_chunks(256).map(|c| c.iter().filter(|r| geometry.intersect(r).is_some()).count()).sum();
-        std::hint::black_box(hits);
-        best = best.min(start.elapsed().as_secs_f64());
-    }
-    rays.len() as f64 / best / 1e6
-}
-
-/// Mean nodes visited and primitives tested per ray.
-fn traversal_work(geometry: &Geometry, rays: &[Ray]) -> (f64, f64) {
-    let (nodes, prims) = rays
-        .par_iter()
-        .map(|r| {
-            let mut s = phr_bvh::TraversalStats::default();
-            geometry.intersect_counted(r, &mut s);
-            (s.nodes as u64, s.prims as u64)
-        })
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
-    let n = rays.len().max(1) as f64;
-    (nodes as f64 / n, prims as f64 / n)
 }
 
 fn print_table(rows: &[Row]) {

@@ -6,7 +6,6 @@
 use crate::bench_build::{open_mesh, scenes_folder, MESHES};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::builder::PHR_AUX;
 use phr_bvh::phr::{build_phr_with, AuxCounts, PhrOptions};
 use phr_bvh::{build_lbvh, sah_cost, SahConstants};
@@ -55,12 +54,7 @@ pub fn run(args: &BenchCutCostArgs) -> Result<()> {
         .filter(|m| args.only.is_empty() || args.only.iter().any(|o| m.contains(o.as_str())))
         .collect();
     let points = args.alphas.len() * args.deltas.len();
-    let progress = ProgressBar::new((meshes.len() * points) as u64);
-    progress.set_style(
-        ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg} (eta {eta})")
-            .expect("template")
-            .progress_chars("=> "),
-    );
+    let progress = crate::progress::bar((meshes.len() * points) as u64);
     let mut lines = vec!["mesh,alpha,delta,build_cost,build_ms,sah_cost_1_1".to_string()];
     println!("{:<36} {:>7} {:>12} {:>12}", "mesh", "points", "corr(b, ms)", "ms per Mcut");
     for name in meshes {

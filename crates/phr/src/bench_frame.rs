@@ -4,7 +4,6 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use phr_bench::frame::time_frames;
 use phr_bench::frame_report::{markdown, write_frame_report, FrameRow, FrameRunInfo};
 use phr_bench::mitsuba::{MitsubaPeer, MitsubaRun};
@@ -50,12 +49,7 @@ pub fn run(args: &BenchFrameArgs) -> Result<()> {
             .map(|dir| MitsubaPeer::next_to(&dir))
             .ok_or("no shared scenes folder next to the scene files"),
     };
-    let progress = ProgressBar::new((files.len() * args.resolutions.len()) as u64);
-    progress.set_style(
-        ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg} (elapsed {elapsed})")
-            .expect("template")
-            .progress_chars("=> "),
-    );
+    let progress = crate::progress::bar((files.len() * args.resolutions.len()) as u64);
     let mut rows = Vec::new();
     for file in &files {
         let scene = load_thesis_scene(file)?;

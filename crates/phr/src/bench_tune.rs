@@ -10,7 +10,6 @@ use crate::bench_build::{open_mesh, scenes_folder, MESHES};
 use crate::tune::{calibrate, measure_frame};
 use anyhow::{Context, Result};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::phr::PhrOptions;
 use phr_bvh::Builder;
 use phr_render::output::write_atomically;
@@ -59,12 +58,7 @@ pub fn run(args: &BenchTuneArgs) -> Result<()> {
         .filter(|m| !m.starts_with("cornell"))
         .filter(|m| args.only.is_empty() || args.only.iter().any(|o| m.contains(o.as_str())))
         .collect();
-    let progress = ProgressBar::new((meshes.len() * args.resolutions.len()) as u64);
-    progress.set_style(
-        ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg} (eta {eta})")
-            .expect("template")
-            .progress_chars("=> "),
-    );
+    let progress = crate::progress::bar((meshes.len() * args.resolutions.len()) as u64);
     let mut csv = vec!["mesh,res,objective,median_gap_pct,max_gap_pct,bo_evals,grid_evals,lbvh_ms,fast_ms,hq_ms,grid_ms,bo_thesis_ms,bo_frametime_ms,grid_alpha,grid_delta,bo_alpha,bo_delta,bo_ft_alpha,bo_ft_delta".to_string()];
     println!(
         "{:<36} {:>4} | {:>14} {:>14} | {:>8} {:>8} {:>8} {:>8} {:>9} {:>9}",

@@ -9,6 +9,7 @@ mod bench_frame;
 mod bench_rays;
 mod bench_tune;
 mod info;
+mod progress;
 mod render;
 mod scene_arg;
 mod tune;

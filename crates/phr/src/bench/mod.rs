@@ -10,13 +10,12 @@
 //! `--peers`, Embree on the same triangles and rays ([`peers`]).
 
 mod measure;
-pub(crate) mod peers;
+mod peers;
 mod plots;
 mod report;
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 
 use phr_bench::suite::{suite_files, SUITE};
@@ -116,12 +115,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let plan = plan(args)?;
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let steps = plan.scenes.len() * (plan.resolutions.len() * plan.builders.len() + plan.branching.len() + 1);
-    let progress = ProgressBar::new(steps as u64);
-    progress.set_style(
-        ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} {msg} (elapsed {elapsed}, eta {eta})")
-            .expect("template")
-            .progress_chars("=> "),
-    );
+    let progress = crate::progress::bar(steps as u64);
     let mut results = measure::Results::default();
     for scene in &plan.scenes {
         measure::measure_scene(scene, &plan, &args.out, &progress, &mut results)

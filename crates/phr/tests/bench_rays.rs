@@ -1,0 +1,42 @@
+//! `phr bench-rays` on one small scene without Embree: the CSV and the Markdown report hold
+//! one row per ray kind, variant and thread count, every hit check passed (the command exits
+//! 0 only then), and the work per ray is what a wide tree over real triangles does.
+
+mod common;
+
+use common::{phr_ok, repo_path, Table, TempDir};
+use std::time::Duration;
+
+#[test]
+fn ray_benchmark_writes_every_kind_variant_and_thread_count() {
+    let dir = TempDir::new("bench-rays");
+    let scene = repo_path("scenes/suite/bunny.json");
+    let args = ["bench-rays", "--scene", scene.to_str().unwrap(), "--res", "48", "--rays", "3000"];
+    let args = [&args[..], &["--threads", "1,2", "--repeats", "1", "--no-embree", "--out", "out"]].concat();
+    let out = phr_ok(&dir.0, &args, Duration::from_secs(300));
+    assert!(out.stdout.contains("# phr bench-rays"), "{}", out.stdout);
+    let csv = Table::read(&dir.join("out/bench-rays.csv"));
+    assert_eq!(csv.rows.len(), 4 * 3 * 2, "kinds × variants × thread counts");
+    for kind in ["primary", "incoherent", "diffuse", "shadow"] {
+        for variant in ["binary", "wide4", "wide8"] {
+            for threads in [1.0, 2.0] {
+                let row = (0..csv.rows.len())
+                    .find(|&r| {
+                        csv.str(r, "kind") == kind
+                            && csv.str(r, "variant") == variant
+                            && csv.num(r, "threads") == threads
+                    })
+                    .unwrap_or_else(|| panic!("no row for {kind} {variant} {threads}"));
+                assert!(csv.num(row, "mrays_per_s") > 0.0);
+                assert_eq!(csv.str(row, "scene"), "bunny");
+                let (nodes, tris) = (csv.num(row, "wide8_nodes_per_ray"), csv.num(row, "wide8_tris_per_ray"));
+                assert!(nodes >= 1.0 && tris >= 0.0, "{kind}: {nodes} nodes, {tris} triangles per ray");
+                assert!(csv.num(row, "binary_nodes_per_ray") >= nodes, "{kind}: a wide tree visits fewer nodes");
+                let share = csv.num(row, "wide8_traversal_share");
+                assert!(share > 0.0 && share < 3.0, "{kind}: traversal share {share}");
+            }
+        }
+    }
+    let md = std::fs::read_to_string(dir.join("out/bench-rays.md")).unwrap();
+    assert!(md.contains("| bunny | 69451 |") && md.contains("## 2 thread(s)"), "{md}");
+}
