@@ -28,6 +28,21 @@ impl FrameTiming {
     }
 }
 
+/// The median of three 1-spp frames of `scene` from `view` with `bvh` set in `geometry`
+/// (collapse not timed): (render ms, rays per frame). What `phr tune`'s frame-time
+/// calibration and `phr bench` measure per tree.
+pub fn median_frame(
+    scene: &Scene,
+    geometry: &mut Geometry,
+    bvh: phr_bvh::Bvh,
+    view: &CameraDesc,
+    settings: &RenderSettings,
+) -> (f64, f64) {
+    geometry.set_bvh(bvh);
+    let timing = time_frames(scene, geometry, view, settings, 0, 3);
+    (timing.ms.median, timing.rays)
+}
+
 /// Renders `warmup` untimed and then `frames` timed 1-spp frames of `scene` from `view` at
 /// the size and depth of `settings`, each added to a film (as the viewer does), on the tree
 /// already set in `geometry`. Frame `k` uses seed `k`, so each frame is a new sample.

@@ -9,7 +9,8 @@
 //!   against;
 //! - [`throughput`]: the one Mrays/s measurement and the one work-per-ray count;
 //! - [`peer`]: exporting triangles and rays to a Python peer and reading its JSON;
-//! - [`ray_bench`], [`ray_report`]: `phr bench-rays` (our traversals against Embree).
+//! - [`ray_bench`], [`ray_report`]: `phr bench-rays` (our traversals against Embree);
+//! - [`thesis`]: `phr bench`, the thesis's chapter 7 (Table 7.1, its figures, the peers).
 //!
 //! The command-line front end parses arguments, calls these, and prints.
 
@@ -23,6 +24,7 @@ pub mod ray_report;
 pub mod rays;
 pub mod stats;
 pub mod suite;
+pub mod thesis;
 pub mod throughput;
 
 pub use stats::Stat;
@@ -32,6 +34,8 @@ pub use stats::Stat;
 pub trait Progress {
     fn status(&self, message: String);
     fn note(&self, message: String);
+    /// One step of the run is done.
+    fn advance(&self) {}
 }
 
 /// No progress shown (tests, scripts).

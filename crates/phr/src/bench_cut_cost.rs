@@ -33,16 +33,6 @@ pub struct BenchCutCostArgs {
     csv: PathBuf,
 }
 
-/// Pearson's correlation coefficient.
-pub fn correlation(xs: &[f64], ys: &[f64]) -> f64 {
-    let n = xs.len() as f64;
-    let (mx, my) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
-    let cov: f64 = xs.iter().zip(ys).map(|(x, y)| (x - mx) * (y - my)).sum();
-    let vx: f64 = xs.iter().map(|x| (x - mx).powi(2)).sum();
-    let vy: f64 = ys.iter().map(|y| (y - my).powi(2)).sum();
-    cov / (vx * vy).sqrt()
-}
-
 pub fn run(args: &BenchCutCostArgs) -> Result<()> {
     if args.repeats == 0 || args.alphas.is_empty() || args.deltas.is_empty() {
         bail!("need at least one repeat, α and δ");
@@ -84,7 +74,13 @@ pub fn run(args: &BenchCutCostArgs) -> Result<()> {
         }
         let per_mcut = times.iter().sum::<f64>() / (costs.iter().sum::<f64>() / 1e6);
         progress.suspend(|| {
-            println!("{:<36} {:>7} {:>12.3} {:>12.1}", name, costs.len(), correlation(&costs, &times), per_mcut)
+            println!(
+                "{:<36} {:>7} {:>12.3} {:>12.1}",
+                name,
+                costs.len(),
+                phr_bench::stats::correlation(&costs, &times),
+                per_mcut
+            )
         });
     }
     progress.finish_and_clear();
@@ -95,17 +91,4 @@ pub fn run(args: &BenchCutCostArgs) -> Result<()> {
     .with_context(|| format!("writing {}", args.csv.display()))?;
     println!("wrote {}", args.csv.display());
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::correlation;
-
-    #[test]
-    fn correlation_of_lines() {
-        let x = [1.0, 2.0, 3.0, 4.0];
-        assert!((correlation(&x, &[2.0, 4.0, 6.0, 8.0]) - 1.0).abs() < 1e-12);
-        assert!((correlation(&x, &[8.0, 6.0, 4.0, 2.0]) + 1.0).abs() < 1e-12);
-        assert!(correlation(&x, &[1.0, -1.0, -1.0, 1.0]).abs() < 1e-12);
-    }
 }

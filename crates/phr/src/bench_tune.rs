@@ -7,9 +7,10 @@
 //!   grid, thesis objective), PHR-BO with the thesis objective and with the frame-time model.
 
 use crate::bench_build::{open_mesh, scenes_folder, MESHES};
-use crate::tune::{calibrate, measure_frame};
+use crate::tune::calibrate;
 use anyhow::{Context, Result};
 use clap::Args;
+use phr_bench::frame::median_frame;
 use phr_bvh::phr::PhrOptions;
 use phr_bvh::Builder;
 use phr_render::output::write_atomically;
@@ -126,7 +127,7 @@ pub fn run(args: &BenchTuneArgs) -> Result<()> {
                     .collect();
                 builds.sort_by(|a, b| a.0.total_cmp(&b.0));
                 let (build_ms, bvh) = builds.swap_remove(1);
-                build_ms + measure_frame(&scene, &mut geometry, bvh, &view, &size).0
+                build_ms + median_frame(&scene, &mut geometry, bvh, &view, &size).0
             };
             let phr = |(a, d): (f64, f64)| Builder::Phr(PhrOptions::with(a as f32, d as f32));
             let times = [

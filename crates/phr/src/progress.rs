@@ -26,4 +26,8 @@ impl phr_bench::Progress for Bar<'_> {
     fn note(&self, message: String) {
         self.0.suspend(|| eprintln!("{message}"));
     }
+
+    fn advance(&self) {
+        self.0.inc(1);
+    }
 }

@@ -7,11 +7,10 @@ use crate::scene_arg::{open_scene, BUILTIN};
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
+use phr_bench::frame::median_frame;
 use phr_bvh::phr::PhrOptions;
-use phr_bvh::Bvh;
 use phr_render::camera::CameraDesc;
 use phr_render::geometry::Geometry;
-use phr_render::render::Renderer;
 use phr_render::scene::RenderSettings;
 use phr_render::Scene;
 use phr_tune::bayes::BoOptions;
@@ -78,28 +77,6 @@ pub struct TuneArgs {
     pub cache: PathBuf,
 }
 
-/// Renders one frame (1 spp) with `bvh` from `view` at the size and depth of `settings`;
-/// returns (render ms, rays), median of three.
-pub fn measure_frame(
-    scene: &Scene,
-    geometry: &mut Geometry,
-    bvh: Bvh,
-    view: &CameraDesc,
-    settings: &RenderSettings,
-) -> (f64, f64) {
-    geometry.set_bvh(bvh);
-    let renderer = Renderer::new(scene, geometry, view, settings, None).with_seed(1);
-    let mut runs: Vec<(f64, f64)> = (0..3)
-        .map(|frame| {
-            let start = Instant::now();
-            let (_, stats) = renderer.render_frame(frame);
-            (start.elapsed().as_secs_f64() * 1e3, stats.rays as f64)
-        })
-        .collect();
-    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    runs[1]
-}
-
 /// The calibrated frame-time model: builds and renders at the box's two corners.
 pub fn calibrate(
     evaluator: &PhrEvaluator,
@@ -115,7 +92,7 @@ pub fn calibrate(
     let corners = [search.lower, search.upper];
     for [a, d] in corners {
         let e = evaluator.evaluate(a, d);
-        let (ms, rays) = measure_frame(scene, geometry, evaluator.build(a, d), view, settings);
+        let (ms, rays) = median_frame(scene, geometry, evaluator.build(a, d), view, settings);
         builds.push(e);
         renders.push((e.sah_cost, rays, ms));
         rays_sum += rays;
@@ -170,7 +147,7 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     let start = Instant::now();
     let bvh = evaluator.build(a, d);
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
-    let (render_ms, _) = measure_frame(&scene, &mut geometry, bvh, &view, &size);
+    let (render_ms, _) = median_frame(&scene, &mut geometry, bvh, &view, &size);
     let frame_ms = build_ms + render_ms;
     let opt_ms = result.elapsed.as_secs_f64() * 1e3;
     println!(

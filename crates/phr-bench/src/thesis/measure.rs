@@ -1,9 +1,9 @@
 //! The measurements of `phr bench`, one scene at a time.
 
 use super::Plan;
-use crate::tune::measure_frame;
+use crate::frame::median_frame as measure_frame;
+use crate::Progress;
 use anyhow::Result;
-use indicatif::ProgressBar;
 use phr_bvh::phr::PhrOptions;
 use phr_bvh::{sah_cost, Builder, Bvh, SahConstants};
 use phr_render::camera::Camera;
@@ -20,7 +20,7 @@ use phr_tune::{PhrEvaluator, SearchBox};
 use std::path::Path;
 use std::time::Instant;
 
-use phr_bench::Stat;
+use crate::Stat;
 
 /// One builder on one scene at one resolution.
 #[derive(Clone, Debug)]
@@ -136,14 +136,14 @@ pub fn measure_scene(
     path: &Path,
     plan: &Plan,
     out: &Path,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
     results: &mut Results,
 ) -> Result<()> {
     let mut scene = load_scene(path)?;
     if plan.materials == super::Materials::Thesis {
-        phr_bench::suite::apply_thesis_setting(&mut scene);
+        crate::suite::apply_thesis_setting(&mut scene);
     }
-    let name = phr_bench::suite::scene_name(path);
+    let name = crate::suite::scene_name(path);
     let views: Vec<_> = scene.views.iter().take(plan.max_views).map(|(_, c)| c.clone()).collect();
     let mut ctx =
         SceneCtx { scene: &scene, name: name.clone(), geometry: Geometry::new(&scene), views, repeats: plan.repeats };
@@ -155,9 +155,9 @@ pub fn measure_scene(
             evaluator = PhrEvaluator::new(&ctx.geometry.boxes, PhrOptions::FAST);
         }
         for builder_name in &plan.builders {
-            progress.set_message(format!("{name} {res}² {builder_name}"));
+            progress.status(format!("{name} {res}² {builder_name}"));
             if builder_name == "sweep-sah" && triangles > plan.sweep_limit {
-                progress.inc(1);
+                progress.advance();
                 continue;
             }
             let (builder, tune_ms) = resolve_builder(builder_name, &evaluator, res)?;
@@ -190,20 +190,20 @@ pub fn measure_scene(
                 tune_ms,
                 tune_frames: tune_ms.map(|t| t / frame_ms),
             });
-            progress.inc(1);
+            progress.advance();
         }
     }
     let res = plan.resolutions[0];
     for &k in &plan.branching {
-        progress.set_message(format!("{name} branching {k}"));
+        progress.status(format!("{name} branching {k}"));
         let builder = Builder::PHR_HQ.with_branching(k).map_err(anyhow::Error::msg)?;
         let (_, _, total, _, bvh) = ctx.build(&builder);
         let sah_21 = sah_cost(&bvh, SahConstants::THESIS);
         let (render_ms, _, _) = ctx.render(bvh, res);
         results.branching.push(BranchRow { scene: name.clone(), k, build_ms: total.median, sah_21, render_ms });
-        progress.inc(1);
+        progress.advance();
     }
-    progress.set_message(format!("{name} Σ|cut| study and heatmaps"));
+    progress.status(format!("{name} Σ|cut| study and heatmaps"));
     for &a in &plan.cut_grid.0 {
         for &d in &plan.cut_grid.1 {
             // Sequential, fresh builds: the tuners' cached timings come from parallel grids.
@@ -216,13 +216,11 @@ pub fn measure_scene(
     results.heatmaps.push((name.clone(), heatmap_pair(&mut ctx, res, out)?));
     if plan.peers {
         let view = &ctx.views[0];
-        if let Some(row) =
-            progress.suspend(|| super::peers::run(&name, path, &scene, &mut ctx.geometry, view, res, out))?
-        {
+        if let Some(row) = super::peers::run(&name, path, &scene, &mut ctx.geometry, view, res, out, progress)? {
             results.peers.push(row);
         }
     }
-    progress.inc(1);
+    progress.advance();
     Ok(())
 }
 

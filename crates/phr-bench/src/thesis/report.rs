@@ -1,7 +1,7 @@
 //! The report files of `phr bench`: `results.csv`, `results.json`, `report.md`.
 
 use super::measure::Results;
-use super::Plan;
+use super::{Materials, Plan};
 use anyhow::{Context, Result};
 use phr_render::output::write_atomically;
 use std::fmt::Write as _;
@@ -70,7 +70,7 @@ fn csv(r: &Results) -> String {
 
 fn json(r: &Results) -> String {
     use serde_json::json;
-    let stat = |s: &super::Stat| json!({"median": s.median, "min": s.min, "max": s.max});
+    let stat = |s: &crate::Stat| json!({"median": s.median, "min": s.min, "max": s.max});
     let rows: Vec<_> = r
         .rows
         .iter()
@@ -166,8 +166,8 @@ fn markdown(plan: &Plan, r: &Results) -> String {
         plan.builders.join(", "),
         rayon::current_num_threads(),
         match plan.materials {
-            super::Materials::Thesis => "the thesis's (white sky, every surface diffuse, up to 6 path segments)",
-            super::Materials::Own => "the scene files' own materials, background and depth",
+            Materials::Thesis => "the thesis's (white sky, every surface diffuse, up to 6 path segments)",
+            Materials::Own => "the scene files' own materials, background and depth",
         },
         plan.max_views
     );
@@ -264,7 +264,7 @@ fn markdown(plan: &Plan, r: &Results) -> String {
         let pts: Vec<_> = r.cut.iter().filter(|c| c.scene == *scene).collect();
         let xs: Vec<f64> = pts.iter().map(|c| c.build_cost).collect();
         let ys: Vec<f64> = pts.iter().map(|c| c.build_ms).collect();
-        let _ = writeln!(s, "| {scene} | {} | {:.3} |", pts.len(), crate::bench_cut_cost::correlation(&xs, &ys));
+        let _ = writeln!(s, "| {scene} | {} | {:.3} |", pts.len(), crate::stats::correlation(&xs, &ys));
     }
     let _ = writeln!(s, "\n![build time against build cost](build_time_vs_cut.svg)\n");
     let _ = writeln!(s, "## Branching factor (section 7.1): PHR-HQ, {}²\n", plan.resolutions[0]);

@@ -4,11 +4,11 @@
 //! Embree's BVH, traces the rays, and checks that the hits agree. embreex traces on one
 //! thread, so our side is measured on one thread too.
 
+use crate::oracle::Hit;
+use crate::peer::{export_dir, peer_script, run_script, write_rays, write_triangles};
+use crate::rays::RaySet;
+use crate::throughput::throughput;
 use anyhow::Result;
-use phr_bench::oracle::Hit;
-use phr_bench::peer::{export_dir, peer_script, run_script, write_rays, write_triangles};
-use phr_bench::rays::RaySet;
-use phr_bench::throughput::throughput;
 use phr_bvh::{Builder, Ray};
 use phr_render::camera::{Camera, CameraDesc};
 use phr_render::geometry::Geometry;
@@ -33,6 +33,7 @@ pub struct PeerRow {
 }
 
 /// Runs the peers for one scene; `Ok(None)` (with a message) when Python or embreex is missing.
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     scene: &str,
     scene_file: &Path,
@@ -41,9 +42,10 @@ pub fn run(
     view: &CameraDesc,
     res: u32,
     out: &Path,
+    progress: &dyn crate::Progress,
 ) -> Result<Option<PeerRow>> {
     let Some(script) = peer_script("peers.py") else {
-        println!("peers: skipped, bench/peers.py not found (run from the repository)");
+        progress.note("peers: skipped, bench/peers.py not found (run from the repository)".into());
         return Ok(None);
     };
     let dir = export_dir("peers", scene)?;
@@ -62,7 +64,7 @@ pub fn run(
         one.install(|| (throughput(&rays.primary, 3, trace), throughput(&rays.diffuse, 3, trace)));
     let bvh = geometry.take_bvh();
     let size = RenderSettings { width: res, height: res, spp: 1, max_depth: scene_data.settings.max_depth };
-    let (ours_frame_ms, _) = crate::tune::measure_frame(scene_data, geometry, bvh, view, &size);
+    let (ours_frame_ms, _) = crate::frame::median_frame(scene_data, geometry, bvh, view, &size);
     let mut script_args: Vec<OsString> =
         [dir.as_os_str(), "--scene".as_ref(), scene_file.as_os_str(), "--res".as_ref()].map(OsString::from).into();
     script_args.push(res.to_string().into());
@@ -75,7 +77,7 @@ pub fn run(
     let json = match result {
         Ok(json) => json,
         Err(why) => {
-            println!("peers: skipped: {why}");
+            progress.note(format!("peers: skipped: {why}"));
             return Ok(None);
         }
     };

@@ -1,28 +1,12 @@
-//! `phr bench`: the thesis's evaluation (chapter 7) reproduced by one command, on the scene
-//! suite in `scenes/suite` (Bunny, Sponza, Sibenik, Dragon, Conference, and eight dragons for
-//! scaling; each with three views, white sky, diffuse, 5 bounces, 60° field of view).
-//!
-//! For every scene, resolution and builder it measures build time (auxiliary LBVH and PHR
-//! apart), SAH cost, `Σ |cut|`, render time (1 spp, mean over the views), frame time and
-//! Mrays/s, with median and spread over repeats; PHR-Grid and PHR-BO are tuned per scene and
-//! resolution, and their tuning time is given in frames. Results go to `DIR` as CSV, JSON, a
-//! Markdown report in the layout of the thesis's Table 7.1, and plots ([`plots`]); with
-//! `--peers`, Embree on the same triangles and rays ([`peers`]).
+//! `phr bench`: the thesis's evaluation (chapter 7) reproduced by one command; the
+//! measurement and the report are [`phr_bench::thesis`], this file parses arguments.
 
-mod measure;
-mod peers;
-mod plots;
-mod report;
-
-use anyhow::{bail, Context, Result};
+use crate::progress::{bar, Bar};
+use anyhow::{bail, Result};
 use clap::Args;
-use std::path::{Path, PathBuf};
-
 use phr_bench::suite::{suite_files, SUITE};
-pub use phr_bench::Stat;
-
-/// Builders measured by default, by name (`phr-grid` and `phr-bo` are tuned per scene).
-pub const BUILDERS: &[&str] = &["lbvh", "phr-fast", "phr-hq", "phr-grid", "phr-bo", "binned-sah", "sweep-sah"];
+use phr_bench::thesis::{self, Materials, Plan, BUILDERS};
+use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct BenchArgs {
@@ -45,7 +29,7 @@ pub struct BenchArgs {
     /// whatever the scene file says (the thesis's benchmark setting); `own`: the scene files'
     /// own materials, background and depth.
     #[arg(long, value_enum, default_value = "thesis")]
-    pub materials: Materials,
+    pub materials: MaterialsArg,
     /// Also run the peers (Embree via embreex, bench/peers.py) on the same triangles and rays.
     #[arg(long)]
     pub peers: bool,
@@ -55,23 +39,9 @@ pub struct BenchArgs {
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Materials {
+pub enum MaterialsArg {
     Thesis,
     Own,
-}
-
-/// What the measurement needs to know, after `--quick` is applied.
-pub struct Plan {
-    pub scenes: Vec<PathBuf>,
-    pub resolutions: Vec<u32>,
-    pub builders: Vec<String>,
-    pub repeats: usize,
-    pub max_views: usize,
-    pub branching: Vec<u32>,
-    pub cut_grid: (Vec<f64>, Vec<f64>),
-    pub sweep_limit: usize,
-    pub peers: bool,
-    pub materials: Materials,
 }
 
 fn plan(args: &BenchArgs) -> Result<Plan> {
@@ -94,7 +64,7 @@ fn plan(args: &BenchArgs) -> Result<Plan> {
             cut_grid: (vec![0.4, 0.6], vec![6.0, 9.0]),
             sweep_limit: args.sweep_limit,
             peers: args.peers,
-            materials: args.materials,
+            materials: materials(args.materials),
         });
     }
     Ok(Plan {
@@ -107,24 +77,23 @@ fn plan(args: &BenchArgs) -> Result<Plan> {
         cut_grid: (vec![0.4, 0.5, 0.6, 0.7], vec![5.0, 7.0, 9.0, 11.0]),
         sweep_limit: args.sweep_limit,
         peers: args.peers,
-        materials: args.materials,
+        materials: materials(args.materials),
     })
+}
+
+fn materials(arg: MaterialsArg) -> Materials {
+    match arg {
+        MaterialsArg::Thesis => Materials::Thesis,
+        MaterialsArg::Own => Materials::Own,
+    }
 }
 
 pub fn run(args: &BenchArgs) -> Result<()> {
     let plan = plan(args)?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let steps = plan.scenes.len() * (plan.resolutions.len() * plan.builders.len() + plan.branching.len() + 1);
-    let progress = crate::progress::bar(steps as u64);
-    let mut results = measure::Results::default();
-    for scene in &plan.scenes {
-        measure::measure_scene(scene, &plan, &args.out, &progress, &mut results)
-            .with_context(|| format!("benchmarking {}", scene.display()))?;
-    }
+    let progress = bar(plan.steps() as u64);
+    let results = thesis::run(&plan, &args.out, &Bar(&progress))?;
     progress.finish_and_clear();
-    report::write_all(&args.out, &plan, &results)?;
-    plots::write_all(&args.out, &results)?;
-    println!("{}", report::summary(&results));
-    println!("wrote {}", Path::new(&args.out).join("report.md").display());
+    println!("{}", thesis::summary(&results));
+    println!("wrote {}", thesis::report_path(&args.out).display());
     Ok(())
 }
