@@ -95,6 +95,32 @@ pub struct FrameReport {
 }
 
 impl FrameReport {
+    /// The columns of [`FrameReport::csv_row`]: what `phr view --headless` and `phr animate`
+    /// write per frame.
+    pub const CSV_HEADER: &'static str =
+        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples";
+
+    /// This frame as a CSV row of [`FrameReport::CSV_HEADER`]'s columns.
+    pub fn csv_row(&self) -> String {
+        format!(
+            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{}",
+            self.frame,
+            self.time,
+            self.moved as u8,
+            self.pose_ms,
+            self.refit_ms,
+            self.build_ms,
+            self.wide_ms,
+            self.render_ms,
+            self.frame_ms,
+            self.rays,
+            self.mrays_per_s(),
+            self.sah_cost,
+            self.build_cost,
+            self.samples
+        )
+    }
+
     pub fn mrays_per_s(&self) -> f64 {
         if self.render_ms > 0.0 {
             self.rays as f64 / self.render_ms / 1e3

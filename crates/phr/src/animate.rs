@@ -2,7 +2,8 @@
 //! [`FramePipeline`] (the viewer's frame loop, so both report the same frame time): pose the
 //! moving objects, refit the auxiliary LBVH, rebuild the render BVH with PHR, collapse it to
 //! the wide BVH, render one sample per pixel. The motion is the scene's own animation or one
-//! applied to every mesh. Writes a CSV of per-frame timings and, if asked, the frames as PNG.
+//! applied to every mesh. Writes a CSV of per-frame timings (the columns of `phr view
+//! --headless`) and, if asked, the frames as PNG.
 
 use crate::scene_arg::{open_scene, BUILTIN};
 use anyhow::{bail, Context, Result};
@@ -155,22 +156,9 @@ fn print_summary(args: &AnimateArgs, triangles: usize, rows: &[FrameReport]) {
 fn write_csv(path: &std::path::Path, rows: &[FrameReport]) -> std::io::Result<()> {
     write_atomically(path, |tmp| {
         let mut f = std::io::BufWriter::new(std::fs::File::create(tmp)?);
-        writeln!(f, "frame,animate_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,build_cost,sah_cost,mrays_per_s")?;
+        writeln!(f, "{}", FrameReport::CSV_HEADER)?;
         for r in rows {
-            writeln!(
-                f,
-                "{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.4},{:.3}",
-                r.frame,
-                r.pose_ms,
-                r.refit_ms,
-                r.build_ms,
-                r.wide_ms,
-                r.render_ms,
-                r.frame_ms,
-                r.build_cost,
-                r.sah_cost,
-                r.mrays_per_s()
-            )?;
+            writeln!(f, "{}", r.csv_row())?;
         }
         f.flush()
     })

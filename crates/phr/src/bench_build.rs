@@ -172,70 +172,61 @@ fn measure(
     }
 }
 
+/// The columns of the CSV, and the console table's headings and widths.
+const COLUMNS: [(&str, &str, usize); 14] = [
+    ("mesh", "mesh", 36),
+    ("triangles", "tris", 8),
+    ("threads", "thr", 3),
+    ("builder", "builder", 12),
+    ("aux_ms", "aux ms", 8),
+    ("build_ms", "build ms", 9),
+    ("total_ms", "total ms", 9),
+    ("sah_cost_1_1", "SAH11", 7),
+    ("sah_cost_2_1", "SAH21", 7),
+    ("build_cost", "Σ|cut|", 9),
+    ("primary_mrays_per_s", "prim Mr/s", 9),
+    ("diffuse_mrays_per_s", "diff Mr/s", 9),
+    ("diffuse_nodes_per_ray", "diff nodes", 10),
+    ("diffuse_prims_per_ray", "diff prims", 10),
+];
+
+/// One row's values, in [`COLUMNS`] order.
+fn cells(r: &Row) -> [String; 14] {
+    [
+        r.mesh.clone(),
+        r.triangles.to_string(),
+        r.threads.to_string(),
+        r.builder.clone(),
+        format!("{:.3}", r.aux_ms),
+        format!("{:.3}", r.build_ms),
+        format!("{:.3}", r.total_ms),
+        format!("{:.4}", r.sah_11),
+        format!("{:.4}", r.sah_21),
+        r.build_cost.map_or(String::new(), |c| c.to_string()),
+        format!("{:.3}", r.primary_mrays),
+        format!("{:.3}", r.diffuse_mrays),
+        format!("{:.2}", r.diffuse_nodes_per_ray),
+        format!("{:.2}", r.diffuse_prims_per_ray),
+    ]
+}
+
 fn print_table(rows: &[Row]) {
-    println!(
-        "{:<36} {:>8} {:>3} {:<12} {:>8} {:>9} {:>9} {:>7} {:>7} {:>9} {:>8} {:>8} {:>13}",
-        "mesh",
-        "tris",
-        "thr",
-        "builder",
-        "aux ms",
-        "build ms",
-        "total ms",
-        "SAH11",
-        "SAH21",
-        "Σ|cut|",
-        "prim Mr/s",
-        "diff Mr/s",
-        "diff node/prim"
-    );
+    let line = |cells: &mut dyn Iterator<Item = String>| {
+        let padded: Vec<String> = cells.zip(COLUMNS).map(|(c, (_, _, w))| format!("{c:>w$}")).collect();
+        println!("{}", padded.join(" "));
+    };
+    line(&mut COLUMNS.iter().map(|c| c.1.to_string()));
     for r in rows {
-        println!(
-            "{:<36} {:>8} {:>3} {:<12} {:>8.2} {:>9.2} {:>9.2} {:>7.2} {:>7.2} {:>9} {:>8.2} {:>8.2} {:>7.1}/{:<5.1}",
-            r.mesh,
-            r.triangles,
-            r.threads,
-            r.builder,
-            r.aux_ms,
-            r.build_ms,
-            r.total_ms,
-            r.sah_11,
-            r.sah_21,
-            r.build_cost.map_or("-".into(), |c| c.to_string()),
-            r.primary_mrays,
-            r.diffuse_mrays,
-            r.diffuse_nodes_per_ray,
-            r.diffuse_prims_per_ray
-        );
+        line(&mut cells(r).into_iter());
     }
 }
 
 fn write_csv(path: &Path, rows: &[Row]) -> std::io::Result<()> {
     write_atomically(path, |tmp| {
         let mut f = std::io::BufWriter::new(std::fs::File::create(tmp)?);
-        writeln!(
-            f,
-            "mesh,triangles,threads,builder,aux_ms,build_ms,total_ms,sah_cost_1_1,sah_cost_2_1,build_cost,primary_mrays_per_s,diffuse_mrays_per_s,diffuse_nodes_per_ray,diffuse_prims_per_ray"
-        )?;
+        writeln!(f, "{}", COLUMNS.map(|c| c.0).join(","))?;
         for r in rows {
-            writeln!(
-                f,
-                "{},{},{},{},{:.3},{:.3},{:.3},{:.4},{:.4},{},{:.3},{:.3},{:.2},{:.2}",
-                r.mesh,
-                r.triangles,
-                r.threads,
-                r.builder,
-                r.aux_ms,
-                r.build_ms,
-                r.total_ms,
-                r.sah_11,
-                r.sah_21,
-                r.build_cost.map_or(String::new(), |c| c.to_string()),
-                r.primary_mrays,
-                r.diffuse_mrays,
-                r.diffuse_nodes_per_ray,
-                r.diffuse_prims_per_ray
-            )?;
+            writeln!(f, "{}", cells(r).join(","))?;
         }
         f.flush()
     })

@@ -38,7 +38,7 @@ fn check_animation(motion: &str) {
         assert_eq!(n("frame"), r as f64);
         // The frame is the viewer's (FramePipeline's): its stages, plus the bookkeeping
         // between them (the tree's SAH cost, the film).
-        let stages: f64 = ["animate_ms", "refit_ms", "build_ms", "wide_ms", "render_ms"].iter().map(|c| n(c)).sum();
+        let stages: f64 = ["pose_ms", "refit_ms", "build_ms", "wide_ms", "render_ms"].iter().map(|c| n(c)).sum();
         assert!(
             n("frame_ms") >= stages - 0.01,
             "{motion} frame {r}: the stages ({stages} ms) exceed the frame ({} ms)",

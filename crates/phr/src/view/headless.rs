@@ -6,7 +6,7 @@ use super::{memory_mib, ViewArgs};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_render::output::{write_atomically, write_image};
-use phr_render::pipeline::FramePipeline;
+use phr_render::pipeline::{FramePipeline, FrameReport};
 use std::io::Write;
 
 pub fn run(args: &ViewArgs, mut pipeline: FramePipeline) -> Result<()> {
@@ -43,10 +43,7 @@ fn frames(args: &ViewArgs, pipeline: &mut FramePipeline, csv: &mut impl Write) -
             .progress_chars("=> "),
     );
     let (width, height) = (pipeline.settings().width, pipeline.settings().height);
-    writeln!(
-        csv,
-        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,rss_mib,peak_rss_mib"
-    )?;
+    writeln!(csv, "{},rss_mib,peak_rss_mib", FrameReport::CSV_HEADER)?;
     let mut summary =
         Summary { times: Vec::with_capacity(args.frames as usize), peak_rss_at_100: 0.0, peak_rss_at_end: 0.0 };
     for frame in 0..args.frames {
@@ -60,26 +57,7 @@ fn frames(args: &ViewArgs, pipeline: &mut FramePipeline, csv: &mut impl Write) -
         // MiB), so the peak column is the running maximum of what was read.
         let (rss, hwm) = memory_mib();
         let peak = hwm.max(rss).max(summary.peak_rss_at_end);
-        writeln!(
-            csv,
-            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{:.1},{:.1}",
-            r.frame,
-            r.time,
-            r.moved as u8,
-            r.pose_ms,
-            r.refit_ms,
-            r.build_ms,
-            r.wide_ms,
-            r.render_ms,
-            r.frame_ms,
-            r.rays,
-            r.mrays_per_s(),
-            r.sah_cost,
-            r.build_cost,
-            r.samples,
-            rss,
-            peak
-        )?;
+        writeln!(csv, "{},{rss:.1},{peak:.1}", r.csv_row())?;
         summary.times.push(
             [r.pose_ms, r.refit_ms, r.build_ms, r.wide_ms, r.render_ms, r.frame_ms, r.mrays_per_s()].map(|x| x as f32),
         );

@@ -411,6 +411,21 @@ impl ViewerApp {
         let (tuned, tuning) = (published.tuned, published.tuning);
         drop(published);
 
+        self.bvh_controls(ui, tuned, tuning);
+        self.image_controls(ui);
+        self.animation_controls(ui, report.time);
+        self.statistics(ui, &report, &history, message);
+        ui.separator();
+        ui.label(
+            egui::RichText::new(
+                "drag: orbit · right drag: look · wheel: dolly\nWASD QE: fly (Shift faster) · R: reset\n1–9: views · Space: play · P: save · F12: window",
+            )
+            .small(),
+        );
+    }
+
+    /// The builder, PHR's parameters and the tuning button.
+    fn bvh_controls(&mut self, ui: &mut egui::Ui, tuned: Option<(f32, f32)>, tuning: bool) {
         ui.heading("phr");
         ui.label(egui::RichText::new(&self.scene_name).small());
         ui.separator();
@@ -440,6 +455,10 @@ impl ViewerApp {
             });
         }
         ui.add_enabled(self.choice.is_phr(), egui::Slider::new(&mut self.branching, 2..=16).text("branching"));
+    }
+
+    /// Resolution, depth, light sampling, view mode, saving.
+    fn image_controls(&mut self, ui: &mut egui::Ui) {
         ui.separator();
         ui.strong("Image");
         ui.add(egui::Slider::new(&mut self.scale, 0.25..=2.0).text("resolution scale"));
@@ -458,6 +477,10 @@ impl ViewerApp {
                 self.window_screenshot(ui.ctx());
             }
         });
+    }
+
+    /// Play, pause, rewind and speed, for animated scenes.
+    fn animation_controls(&mut self, ui: &mut egui::Ui, time: f32) {
         ui.separator();
         ui.strong("Animation");
         if self.animated {
@@ -471,10 +494,14 @@ impl ViewerApp {
                 }
             });
             ui.add(egui::Slider::new(&mut self.controls.speed, 0.0..=4.0).text("speed"));
-            ui.label(format!("t = {:.2} s", report.time));
+            ui.label(format!("t = {:.2} s", time));
         } else {
             ui.label("static scene");
         }
+    }
+
+    /// The last frame's timings, the frame-time plot and the last message.
+    fn statistics(&self, ui: &mut egui::Ui, report: &FrameReport, history: &[[f32; 3]], message: String) {
         ui.separator();
         ui.strong("Statistics");
         egui::Grid::new("stats").num_columns(2).striped(true).show(ui, |ui| {
@@ -496,18 +523,11 @@ impl ViewerApp {
             row("Σ|cut|", format!("{}", report.build_cost));
             row("samples", format!("{}", report.samples));
         });
-        frame_time_plot(ui, &history);
+        frame_time_plot(ui, history);
         if !message.is_empty() {
             ui.separator();
             ui.label(egui::RichText::new(message).small());
         }
-        ui.separator();
-        ui.label(
-            egui::RichText::new(
-                "drag: orbit · right drag: look · wheel: dolly\nWASD QE: fly (Shift faster) · R: reset\n1–9: views · Space: play · P: save · F12: window",
-            )
-            .small(),
-        );
     }
 }
 
