@@ -6,8 +6,8 @@
 //! apart), SAH cost, `Σ |cut|`, render time (1 spp, mean over the views), frame time and
 //! Mrays/s, with median and spread over repeats; PHR-Grid and PHR-BO are tuned per scene and
 //! resolution, and their tuning time is given in frames. Results go to `DIR` as CSV, JSON, a
-//! Markdown report in the layout of the thesis's Table 7.1, and plots ([`plots`]); with
-//! `--peers`, Embree on the same triangles and rays ([`peers`]).
+//! Markdown report in the layout of the thesis's Table 7.1, and SVG plots; with
+//! `--peers`, Embree on the same triangles and rays (`bench/peers.py`).
 
 mod measure;
 mod peers;
