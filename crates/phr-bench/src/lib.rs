@@ -37,11 +37,3 @@ pub trait Progress {
     /// One step of the run is done.
     fn advance(&self) {}
 }
-
-/// No progress shown (tests, scripts).
-pub struct Quiet;
-
-impl Progress for Quiet {
-    fn status(&self, _: String) {}
-    fn note(&self, _: String) {}
-}

@@ -271,8 +271,8 @@ fn measure_kind(
     for &threads in &options.threads {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
         progress.status(format!("{name}: {kind} rays, {threads} thread(s)"));
-        let mrays = pool.install(|| variant_throughputs(kind == SHADOW, rays, trees, options.repeats));
-        for (v, m) in VARIANTS.iter().zip(mrays) {
+        for (i, v) in VARIANTS.iter().enumerate() {
+            let m = pool.install(|| variant_throughput(i, kind == SHADOW, rays, trees, options.repeats));
             row.mrays.insert((v.to_string(), threads), m);
         }
     }
@@ -281,20 +281,16 @@ fn measure_kind(
     Ok(row)
 }
 
-/// Mrays/s of the binary, wide-4 and wide-8 traversals (any-hit queries for shadow rays).
-fn variant_throughputs(any: bool, rays: &[Ray], t: &Trees, repeats: usize) -> [f64; 3] {
-    if any {
-        [
-            throughput(rays, repeats, |ray| binary_occluded(&t.bvh, &t.tris, ray)),
-            throughput(rays, repeats, |ray| t.wide4.any_triangle(&t.packed4, ray)),
-            throughput(rays, repeats, |ray| t.wide8.any_triangle(&t.packed8, ray)),
-        ]
-    } else {
-        [
-            throughput(rays, repeats, |ray| binary_hit(&t.bvh, &t.tris, ray).is_some()),
-            throughput(rays, repeats, |ray| wide_hit(&t.wide4, &t.packed4, ray).is_some()),
-            throughput(rays, repeats, |ray| wide_hit(&t.wide8, &t.packed8, ray).is_some()),
-        ]
+/// Mrays/s of `VARIANTS[variant]` (binary, wide-4, wide-8), as any-hit queries for shadow
+/// rays.
+fn variant_throughput(variant: usize, any: bool, rays: &[Ray], t: &Trees, repeats: usize) -> f64 {
+    match (variant, any) {
+        (0, true) => throughput(rays, repeats, |ray| binary_occluded(&t.bvh, &t.tris, ray)),
+        (1, true) => throughput(rays, repeats, |ray| t.wide4.any_triangle(&t.packed4, ray)),
+        (_, true) => throughput(rays, repeats, |ray| t.wide8.any_triangle(&t.packed8, ray)),
+        (0, false) => throughput(rays, repeats, |ray| binary_hit(&t.bvh, &t.tris, ray).is_some()),
+        (1, false) => throughput(rays, repeats, |ray| wide_hit(&t.wide4, &t.packed4, ray).is_some()),
+        (_, false) => throughput(rays, repeats, |ray| wide_hit(&t.wide8, &t.packed8, ray).is_some()),
     }
 }
 
@@ -337,7 +333,7 @@ fn work_per_ray(row: &mut Row, rays: &[Ray], reference: &[Hit], t: &Trees, repea
     });
     let full = match row.get("wide8", 1) {
         Some(m) => m,
-        None => variant_throughputs(row.kind == SHADOW, rays, t, repeats)[2],
+        None => variant_throughput(2, row.kind == SHADOW, rays, t, repeats),
     };
     row.traversal_share = full / traversal;
 }

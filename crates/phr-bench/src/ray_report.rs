@@ -5,6 +5,11 @@ use phr_render::output::write_atomically;
 use std::io::Write;
 use std::path::Path;
 
+/// One Markdown table row of `cells`.
+fn table_row(cells: impl IntoIterator<Item = String>) -> String {
+    format!("| {} |\n", cells.into_iter().collect::<Vec<_>>().join(" | "))
+}
+
 fn fmt(x: Option<f64>) -> String {
     x.map_or("-".into(), |x| format!("{x:.2}"))
 }
@@ -31,18 +36,17 @@ pub fn markdown(infos: &[SceneInfo], rows: &[Row], options: &RayBenchOptions) ->
     );
     s += "| scene | triangles | build ms | collapse-4 ms | collapse-8 ms | Embree build ms | wide-8 nodes MB | triangles MB | block fill |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for i in infos {
-        s += &format!(
-            "| {} | {} | {:.1} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.2} |\n",
-            i.scene,
-            i.triangles,
-            i.build_ms,
-            i.collapse4_ms,
-            i.collapse8_ms,
+        s += &table_row([
+            i.scene.clone(),
+            i.triangles.to_string(),
+            format!("{:.1}", i.build_ms),
+            format!("{:.1}", i.collapse4_ms),
+            format!("{:.1}", i.collapse8_ms),
             i.embree_build_ms.map_or("-".into(), |x| format!("{x:.1}")),
-            i.wide8_mb,
-            i.packed8_mb,
-            i.block_fill
-        );
+            format!("{:.1}", i.wide8_mb),
+            format!("{:.1}", i.packed8_mb),
+            format!("{:.2}", i.block_fill),
+        ]);
     }
     for &t in threads {
         s += &format!(
@@ -53,37 +57,32 @@ pub fn markdown(infos: &[SceneInfo], rows: &[Row], options: &RayBenchOptions) ->
             let ratio = r.get("embree", t).map(|e| best / e);
             let ratio_robust = r.get("embree-robust", t).map(|e| best / e);
             let speedup = r.get("binary", t).map(|b| r.get("wide8", t).unwrap_or(0.0) / b);
-            s += &format!(
-                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
-                r.scene,
-                r.kind,
-                fmt(r.get("binary", t)),
-                fmt(r.get("wide4", t)),
-                fmt(r.get("wide8", t)),
-                fmt(r.get("embree", t)),
-                fmt(r.get("embree-robust", t)),
+            let [b, w4, w8, e, er] = ["binary", "wide4", "wide8", "embree", "embree-robust"].map(|v| fmt(r.get(v, t)));
+            s += &table_row([
+                r.scene.clone(),
+                r.kind.clone(),
+                b,
+                w4,
+                w8,
+                e,
+                er,
                 fmt(ratio),
                 fmt(ratio_robust),
-                fmt(speedup)
-            );
+                fmt(speedup),
+            ]);
         }
     }
     s += "\n## Work per ray (1 thread)\n\nbinary: nodes visited, triangles tested; wide8: nodes, leaves, triangles; \
           traversal share: time of a wide-8 pass with `tmax` preset to the closest hit and leaves not intersected, \
           over the full wide-8 time.\n\n| scene | rays | hit rate | binary nodes | binary tris | wide8 nodes | wide8 leaves | wide8 tris | traversal share | Embree hit agreement |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
     for r in rows {
-        s += &format!(
-            "| {} | {} | {:.2} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.0}% | {} |\n",
-            r.scene,
-            r.kind,
-            r.hit_rate,
-            r.binary_nodes,
-            r.binary_tris,
-            r.wide_nodes,
-            r.wide_leaves,
-            r.wide_tris,
-            100.0 * r.traversal_share,
-            r.embree_agreement.map_or("-".into(), |a| format!("{:.4}", a))
+        let per_ray =
+            [r.binary_nodes, r.binary_tris, r.wide_nodes, r.wide_leaves, r.wide_tris].map(|x| format!("{x:.1}"));
+        s += &table_row(
+            [r.scene.clone(), r.kind.clone(), format!("{:.2}", r.hit_rate)].into_iter().chain(per_ray).chain([
+                format!("{:.0}%", 100.0 * r.traversal_share),
+                r.embree_agreement.map_or("-".into(), |a| format!("{a:.4}")),
+            ]),
         );
     }
     s
