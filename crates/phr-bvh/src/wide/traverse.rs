@@ -3,8 +3,12 @@
 //! One loop for closest and any hit: test all children of the current node at once, and
 //! - no child hit: pop;
 //! - one child hit: go there (no stack traffic, the common case deep in the tree);
-//! - several (closest hit): sort them by entry distance (keys `t_bits << 32 | slot`, insertion sort, at
-//!   most `N` of them), push all but the nearest, farthest first, and go to the nearest.
+//! - two (closest hit): push the farther, go to the nearer;
+//! - more (closest hit): push them all, farthest first, and pop the nearest. The AVX2 kernel
+//!   sorts them with a bitonic network in one register and pushes them with one vector store
+//!   per stack array, without a branch per child (measured in `docs/bench-frame/history.md`:
+//!   +5–8 % on Sponza's and Conference's incoherent rays); the other kernels use an insertion
+//!   sort on the keys `t_bits << 32 | slot` and push one child at a time.
 //!
 //! Any-hit queries push the hit children unsorted (the first hit ends the query wherever it
 //! is found).
@@ -33,6 +37,47 @@ struct Entry {
     /// 0 for a node, else the leaf's primitive count.
     count: u32,
     t: f32,
+}
+
+/// The traversal stack, structure of arrays (one array per [`Entry`] field), so that a SIMD
+/// kernel can push all hit children of a node with one vector store per field. Each array
+/// has room for `stack_bound + N + 1` entries: the bound holds between node visits, and a
+/// vector push writes `N` lanes (only the hit ones count) above it.
+struct Stack {
+    child: *mut u32,
+    count: *mut u32,
+    t: *mut f32,
+    sp: usize,
+}
+
+impl Stack {
+    /// # Safety
+    /// Room for the entry (see the type's doc).
+    #[inline(always)]
+    unsafe fn push(&mut self, e: Entry) {
+        // SAFETY: the caller guarantees room.
+        unsafe {
+            self.child.add(self.sp).write(e.child);
+            self.count.add(self.sp).write(e.count);
+            self.t.add(self.sp).write(e.t);
+        }
+        self.sp += 1;
+    }
+
+    /// # Safety
+    /// `sp > 0`.
+    #[inline(always)]
+    unsafe fn pop(&mut self) -> Entry {
+        self.sp -= 1;
+        // SAFETY: entries below `sp` were written by pushes.
+        unsafe {
+            Entry {
+                child: self.child.add(self.sp).read(),
+                count: self.count.add(self.sp).read(),
+                t: self.t.add(self.sp).read(),
+            }
+        }
+    }
 }
 
 /// What the traversal does at leaves. Implement it on a type (with `#[inline(always)]` on
@@ -68,11 +113,52 @@ impl<F: FnMut(u32, u32, &mut Ray) -> bool, P: Fn(u32)> LeafVisitor for FnLeaves<
     }
 }
 
-/// A node kernel: the box test of [`super::simd`] for one width and level.
+/// A node kernel: the box test of [`super::simd`] for one width and level, and the push of
+/// several hit children in entry-distance order.
 trait Kernel<const N: usize> {
     /// # Safety
     /// The CPU must support the kernel's instructions.
     unsafe fn test(node: &WideNode<N>, r: &RayPre, tmax: f32, t: &mut [f32; N]) -> u32;
+
+    /// Pushes the children of `node` in `mask` (at least two) with their entry distances
+    /// `t`, farthest first, so that the nearest is on top. By default an insertion sort on
+    /// the keys `t_bits << 32 | slot`, then one push per child, which also asks for the
+    /// child's data to be loaded.
+    ///
+    /// # Safety
+    /// The CPU must support the kernel's instructions; room on the stack as [`Stack`] says.
+    #[inline(always)]
+    unsafe fn push_sorted<V: LeafVisitor>(
+        node: &WideNode<N>,
+        t: &[f32; N],
+        mask: u32,
+        nodes: &[WideNode<N>],
+        leaves: &V,
+        stack: &mut Stack,
+    ) {
+        // Entry distances are >= tmin; for tmin >= 0 their bit patterns order like the
+        // floats (a negative tmin only changes the visit order, never the result).
+        let mut keys = [0u64; N];
+        let mut k = 0;
+        let mut m = mask;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let key = (u64::from(t[i].to_bits()) << 32) | i as u64;
+            let mut j = k;
+            while j > 0 && keys[j - 1] > key {
+                keys[j] = keys[j - 1];
+                j -= 1;
+            }
+            keys[j] = key;
+            k += 1;
+        }
+        for &key in keys[..k].iter().rev() {
+            let i = (key & 0xff) as usize;
+            // SAFETY: the caller guarantees room.
+            unsafe { push(node, i, t[i], nodes, leaves, stack) };
+        }
+    }
 }
 
 struct ScalarKernel;
@@ -114,6 +200,22 @@ impl Kernel<8> for Avx2Kernel {
         // which `WideBvh::set_simd` only allows when the CPU has it).
         unsafe { super::simd::node_avx8(node, r, tmax, t) }
     }
+
+    #[inline(always)]
+    unsafe fn push_sorted<V: LeafVisitor>(
+        node: &WideNode<8>,
+        t: &[f32; 8],
+        mask: u32,
+        _nodes: &[WideNode<8>],
+        _leaves: &V,
+        stack: &mut Stack,
+    ) {
+        // SAFETY: AVX2 as for `test`; the stack has room for 8 more entries.
+        unsafe {
+            super::simd::push_sorted_avx8(node, t, mask, stack.child, stack.count, stack.t, stack.sp);
+        }
+        stack.sp += mask.count_ones() as usize;
+    }
 }
 
 /// The traversal loop. `ANY`: stop at the first leaf that reports a hit. `COUNT`: fill
@@ -138,15 +240,26 @@ unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, 
     if nodes.is_empty() || !(ray.origin.is_finite() && ray.dir.is_finite() && ray.inv_dir.is_finite()) {
         return false;
     }
-    let mut inline: [MaybeUninit<Entry>; INLINE_STACK] = [const { MaybeUninit::uninit() }; INLINE_STACK];
-    let mut heap: Vec<Entry> = Vec::new();
-    let stack: *mut Entry = if bvh.stack_bound < INLINE_STACK {
-        inline.as_mut_ptr().cast()
+    // Room for `stack_bound + N + 1` entries per array (see `Stack`).
+    const ROOM: usize = INLINE_STACK + 16 + 1;
+    let mut inline_child = [MaybeUninit::<u32>::uninit(); ROOM];
+    let mut inline_count = [MaybeUninit::<u32>::uninit(); ROOM];
+    let mut inline_t = [MaybeUninit::<f32>::uninit(); ROOM];
+    let (mut heap_child, mut heap_count, mut heap_t) = (Vec::<u32>::new(), Vec::<u32>::new(), Vec::<f32>::new());
+    let mut stack = if bvh.stack_bound < INLINE_STACK && N <= 16 {
+        Stack {
+            child: inline_child.as_mut_ptr().cast(),
+            count: inline_count.as_mut_ptr().cast(),
+            t: inline_t.as_mut_ptr().cast(),
+            sp: 0,
+        }
     } else {
-        heap.reserve_exact(bvh.stack_bound + 1);
-        heap.as_mut_ptr()
+        let room = bvh.stack_bound + N + 1;
+        heap_child.reserve_exact(room);
+        heap_count.reserve_exact(room);
+        heap_t.reserve_exact(room);
+        Stack { child: heap_child.as_mut_ptr(), count: heap_count.as_mut_ptr(), t: heap_t.as_mut_ptr(), sp: 0 }
     };
-    let mut sp = 0usize;
     let pre = RayPre::new(ray);
     let mut t = [0.0f32; N];
     let mut hit = false;
@@ -171,6 +284,7 @@ unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, 
                     cur = Entry { child: node.child[i], count: node.count[i], t: t[i] };
                     continue;
                 }
+                debug_assert!(stack.sp <= bvh.stack_bound, "wide traversal: stack bound exceeded");
                 if ANY {
                     // Any hit needs no order: push the children in slot order (no sort, no
                     // distance compare) and go to the first, as Embree's occlusion traversal.
@@ -179,8 +293,8 @@ unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, 
                     while m != 0 {
                         let i = m.trailing_zeros() as usize;
                         m &= m - 1;
-                        // SAFETY: see `push`.
-                        unsafe { push(node, i, t[i], nodes, leaves, stack, &mut sp, bvh.stack_bound) };
+                        // SAFETY: see `Stack`.
+                        unsafe { push(node, i, t[i], nodes, leaves, &mut stack) };
                     }
                     cur = Entry { child: node.child[first], count: node.count[first], t: t[first] };
                     continue;
@@ -190,37 +304,14 @@ unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, 
                     // Two children (the common case): push the farther, visit the nearer.
                     let (a, b) = (mask.trailing_zeros() as usize, rest.trailing_zeros() as usize);
                     let (near, far) = if t[b] < t[a] { (b, a) } else { (a, b) };
-                    // SAFETY: see `push`.
-                    unsafe { push(node, far, t[far], nodes, leaves, stack, &mut sp, bvh.stack_bound) };
+                    // SAFETY: see `Stack`.
+                    unsafe { push(node, far, t[far], nodes, leaves, &mut stack) };
                     cur = Entry { child: node.child[near], count: node.count[near], t: t[near] };
                     continue;
                 }
-                // Several children: sort by entry distance. Entry distances are >= tmin;
-                // for tmin >= 0 their bit patterns order like the floats (a negative tmin
-                // only changes the visit order, never the result).
-                let mut keys = [0u64; N];
-                let mut k = 0;
-                let mut m = mask;
-                while m != 0 {
-                    let i = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    let key = (u64::from(t[i].to_bits()) << 32) | i as u64;
-                    let mut j = k;
-                    while j > 0 && keys[j - 1] > key {
-                        keys[j] = keys[j - 1];
-                        j -= 1;
-                    }
-                    keys[j] = key;
-                    k += 1;
-                }
-                for &key in keys[1..k].iter().rev() {
-                    let i = (key & 0xff) as usize;
-                    // SAFETY: see `push`.
-                    unsafe { push(node, i, t[i], nodes, leaves, stack, &mut sp, bvh.stack_bound) };
-                }
-                let i = (keys[0] & 0xff) as usize;
-                cur = Entry { child: node.child[i], count: node.count[i], t: t[i] };
-                continue;
+                // Several children: push them sorted, the nearest on top, and pop it below.
+                // SAFETY: see `Stack`; the caller guarantees the kernel's instructions.
+                unsafe { K::push_sorted(node, &t, mask, nodes, leaves, &mut stack) };
             }
         } else {
             if COUNT {
@@ -236,12 +327,11 @@ unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, 
         }
         // Pop the next entry that still starts before the closest hit.
         loop {
-            if sp == 0 {
+            if stack.sp == 0 {
                 return hit;
             }
-            sp -= 1;
-            // SAFETY: entries below `sp` were written by the pushes above.
-            let e = unsafe { stack.add(sp).read() };
+            // SAFETY: `sp > 0`.
+            let e = unsafe { stack.pop() };
             if e.t <= ray.tmax * ROBUST_SLAB {
                 cur = e;
                 break;
@@ -254,29 +344,23 @@ unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, 
 /// node's box rows, or the leaf's primitives through the visitor.
 ///
 /// # Safety
-/// `stack` holds `stack_bound + 1` entries and `*sp <= stack_bound`: the collapse bounds the
-/// entries on the stack by `stack_bound` (see `collapse::collapse`).
+/// Room on the stack (see [`Stack`]).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 unsafe fn push<const N: usize, V: LeafVisitor>(
     node: &WideNode<N>,
     i: usize,
     t: f32,
     nodes: &[WideNode<N>],
     leaves: &V,
-    stack: *mut Entry,
-    sp: &mut usize,
-    stack_bound: usize,
+    stack: &mut Stack,
 ) {
     if node.count[i] == 0 {
         prefetch_node(nodes, node.child[i]);
     } else {
         leaves.prefetch(node.child[i]);
     }
-    debug_assert!(*sp <= stack_bound, "wide traversal: stack bound exceeded");
     // SAFETY: the caller guarantees room for the entry.
-    unsafe { stack.add(*sp).write(Entry { child: node.child[i], count: node.count[i], t }) };
-    *sp += 1;
+    unsafe { stack.push(Entry { child: node.child[i], count: node.count[i], t }) };
 }
 
 /// Asks for the cache line at `p` (a hint; never faults).
