@@ -10,10 +10,15 @@
 //! - [`throughput`]: the one Mrays/s measurement and the one work-per-ray count;
 //! - [`peer`]: exporting triangles and rays to a Python peer and reading its JSON;
 //! - [`ray_bench`], [`ray_report`]: `phr bench-rays` (our traversals against Embree);
+//! - [`build_bench`]: `phr bench-build` (every builder: build time, tree quality, Mrays/s);
+//! - [`cut_cost`]: `phr bench-cut-cost` (does PHR's `Σ |cut|` predict its build time?);
+//! - [`tune_bench`]: `phr bench-tune` (BO against a dense grid; the tuners' frame times);
 //! - [`thesis`]: `phr bench`, the thesis's chapter 7 (Table 7.1, its figures, the peers).
 //!
 //! The command-line front end parses arguments, calls these, and prints.
 
+pub mod build_bench;
+pub mod cut_cost;
 pub mod frame;
 pub mod frame_report;
 pub mod mitsuba;
@@ -26,6 +31,7 @@ pub mod stats;
 pub mod suite;
 pub mod thesis;
 pub mod throughput;
+pub mod tune_bench;
 
 pub use stats::Stat;
 

@@ -38,8 +38,6 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// The scenes measured by default, by file stem in `scenes/suite`.
-pub const SCENES: &[&str] = &["bunny", "sponza", "sibenik", "dragon", "conference"];
 pub const KINDS: [&str; 4] = ["primary", "incoherent", "diffuse", "shadow"];
 /// The kind traced as any-hit (occlusion) queries.
 pub const SHADOW: &str = "shadow";

@@ -2,6 +2,7 @@
 
 use anyhow::{Context, Result};
 use glam::Vec3;
+use phr_render::geometry::Geometry;
 use phr_render::material::Material;
 use phr_render::scene::load_scene;
 use phr_render::scene::Background;
@@ -11,6 +12,45 @@ use std::path::{Path, PathBuf};
 /// The suite, by file stem in `scenes/suite`: the thesis's scenes (Bunny, Sponza, Sibenik,
 /// Dragon, Conference) and eight dragons for scaling. Each has three views.
 pub const SUITE: &[&str] = &["bunny", "sponza", "sibenik", "dragon", "conference", "dragons8"];
+
+/// The thesis's five scenes, by file stem in `scenes/suite`: the suite without the scaling
+/// scene (what `phr bench-rays` measures by default).
+pub const THESIS_SCENES: &[&str] = &["bunny", "sponza", "sibenik", "dragon", "conference"];
+
+/// The meshes of the shared scenes folder, by path below it: the builder benchmarks
+/// (`phr bench-build`, `bench-cut-cost`, `bench-tune`) measure the bare meshes, framed by
+/// their default camera, rather than the suite's views.
+pub const SHARED_MESHES: &[&str] = &[
+    "cornell_box/CornellBox-Original.obj",
+    "bunny/bun_zipper.ply",
+    "sponza/sponza.obj",
+    "sibenik/sibenik.obj",
+    "sibenik/sibenik_75284_geometry.ply",
+    "conference/conference_geometry.ply",
+    "dragon/dragon_vrip.ply",
+];
+
+/// The entries of `list` whose name contains one of `only` (all of them if `only` is empty).
+pub fn select<'a>(list: &[&'a str], only: &[String]) -> Vec<&'a str> {
+    list.iter().copied().filter(|m| only.is_empty() || only.iter().any(|o| m.contains(o.as_str()))).collect()
+}
+
+/// The shared scenes folder: the one given, or the one `{scenes}` in scene files stands for
+/// (`$PHR_SCENES_DIR`, or found above the current directory).
+pub fn shared_scenes_dir(given: Option<&Path>) -> Result<PathBuf> {
+    match given {
+        Some(d) => Ok(d.to_path_buf()),
+        None => phr_render::scene::json::scenes_dir(Path::new("."))
+            .context("cannot find the shared scenes folder; pass --scenes DIR or set PHR_SCENES_DIR"),
+    }
+}
+
+/// One mesh of the shared scenes (a path below `dir`), as a scene (its materials, a camera
+/// framing it) and its geometry.
+pub fn open_mesh(dir: &Path, name: &str) -> Result<(Geometry, Scene)> {
+    let scene = load_scene(&dir.join(name))?;
+    Ok((Geometry::new(&scene), scene))
+}
 
 /// Path segments of the thesis's frame (camera ray and five bounces).
 pub const THESIS_MAX_DEPTH: u32 = 6;
@@ -55,4 +95,26 @@ pub fn load_thesis_scene(path: &Path) -> Result<Scene> {
     let mut scene = load_scene(path).with_context(|| format!("loading {}", path.display()))?;
     apply_thesis_setting(&mut scene);
     Ok(scene)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_suite_is_the_thesis_scenes_and_the_scaling_scene() {
+        assert_eq!(&SUITE[..THESIS_SCENES.len()], THESIS_SCENES);
+        assert_eq!(SUITE.len(), THESIS_SCENES.len() + 1);
+    }
+
+    #[test]
+    fn select_filters_by_substring() {
+        assert_eq!(select(SHARED_MESHES, &[]).len(), SHARED_MESHES.len());
+        assert_eq!(select(SHARED_MESHES, &["sibenik".into()]).len(), 2);
+        assert_eq!(
+            select(SHARED_MESHES, &["bunny".into(), "dragon".into()]),
+            ["bunny/bun_zipper.ply", "dragon/dragon_vrip.ply"]
+        );
+        assert!(select(SHARED_MESHES, &["nothing".into()]).is_empty());
+    }
 }

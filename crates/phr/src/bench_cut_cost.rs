@@ -1,18 +1,16 @@
 //! `phr bench-cut-cost`: how well PHR's build cost `b = Σ |cut|` predicts its build time
-//! (the thesis found a correlation of 0.99). For each mesh, PHR is built from one auxiliary
-//! LBVH over a grid of α and δ; the Pearson correlation of Σ|cut| with the median build time
-//! is printed per mesh, and every point goes to a CSV.
+//! (the thesis found a correlation of 0.99): per mesh, the Pearson correlation of Σ|cut| with
+//! the median build time over a grid of α and δ is printed, and every point goes to a CSV.
+//! What is measured and how: [`phr_bench::cut_cost`].
 
-use crate::bench_build::{open_mesh, scenes_folder, MESHES};
+use crate::progress::Bar;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use phr_bvh::builder::PHR_AUX;
-use phr_bvh::phr::{build_phr_with, AuxCounts, PhrOptions};
-use phr_bvh::{build_lbvh, sah_cost, SahConstants};
+use phr_bench::cut_cost::{measure_cut_cost, summary, CSV_HEADER};
+use phr_bench::suite::{open_mesh, select, shared_scenes_dir, SHARED_MESHES};
 use phr_render::output::write_atomically;
 use std::io::Write;
 use std::path::PathBuf;
-use std::time::Instant;
 
 #[derive(Args)]
 pub struct BenchCutCostArgs {
@@ -37,51 +35,18 @@ pub fn run(args: &BenchCutCostArgs) -> Result<()> {
     if args.repeats == 0 || args.alphas.is_empty() || args.deltas.is_empty() {
         bail!("need at least one repeat, α and δ");
     }
-    let dir = scenes_folder(&args.scenes)?;
-    let meshes: Vec<&str> = MESHES
-        .iter()
-        .copied()
-        .filter(|m| args.only.is_empty() || args.only.iter().any(|o| m.contains(o.as_str())))
-        .collect();
-    let points = args.alphas.len() * args.deltas.len();
-    let progress = crate::progress::bar((meshes.len() * points) as u64);
-    let mut lines = vec!["mesh,alpha,delta,build_cost,build_ms,sah_cost_1_1".to_string()];
+    let dir = shared_scenes_dir(args.scenes.as_deref())?;
+    let meshes = select(SHARED_MESHES, &args.only);
+    let progress = crate::progress::bar((meshes.len() * args.alphas.len() * args.deltas.len()) as u64);
+    let mut lines = vec![CSV_HEADER.to_string()];
     println!("{:<36} {:>7} {:>12} {:>12}", "mesh", "points", "corr(b, ms)", "ms per Mcut");
     for name in meshes {
         progress.set_message(name.to_string());
         let (geometry, _) = open_mesh(&dir, name)?;
-        let aux = build_lbvh(&geometry.boxes, PHR_AUX);
-        let counts = AuxCounts::new(&aux);
-        let (mut costs, mut times) = (Vec::new(), Vec::new());
-        for &alpha in &args.alphas {
-            for &delta in &args.deltas {
-                let options = PhrOptions::with(alpha, delta);
-                let mut runs: Vec<(f64, u64, f64)> = (0..args.repeats)
-                    .map(|_| {
-                        let start = Instant::now();
-                        let (bvh, stats) = build_phr_with(&aux, &counts, &options);
-                        let ms = start.elapsed().as_secs_f64() * 1e3;
-                        (ms, stats.build_cost, sah_cost(&bvh, SahConstants::UNIT))
-                    })
-                    .collect();
-                runs.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let (ms, cost, sah) = runs[runs.len() / 2];
-                lines.push(format!("{name},{alpha},{delta},{cost},{ms:.3},{sah:.4}"));
-                costs.push(cost as f64);
-                times.push(ms);
-                progress.inc(1);
-            }
-        }
-        let per_mcut = times.iter().sum::<f64>() / (costs.iter().sum::<f64>() / 1e6);
-        progress.suspend(|| {
-            println!(
-                "{:<36} {:>7} {:>12.3} {:>12.1}",
-                name,
-                costs.len(),
-                phr_bench::stats::correlation(&costs, &times),
-                per_mcut
-            )
-        });
+        let points = measure_cut_cost(&geometry.boxes, &args.alphas, &args.deltas, args.repeats, &Bar(&progress));
+        lines.extend(points.iter().map(|p| p.csv_row(name)));
+        let (correlation, per_mcut) = summary(&points);
+        progress.suspend(|| println!("{:<36} {:>7} {:>12.3} {:>12.1}", name, points.len(), correlation, per_mcut));
     }
     progress.finish_and_clear();
     write_atomically(&args.csv, |tmp| {

@@ -27,8 +27,9 @@
 use crate::progress::{bar, Bar};
 use anyhow::{Context, Result};
 use clap::Args;
-use phr_bench::ray_bench::{measure_scene, validate, RayBenchOptions, SCENES};
+use phr_bench::ray_bench::{measure_scene, validate, RayBenchOptions};
 use phr_bench::ray_report::{markdown, write_csv};
+use phr_bench::suite::{suite_files, THESIS_SCENES};
 use phr_bvh::Builder;
 use phr_render::output::write_atomically;
 use std::path::PathBuf;
@@ -78,7 +79,7 @@ impl BenchRaysArgs {
 pub fn run(args: &BenchRaysArgs) -> Result<()> {
     let options = args.options();
     validate(&options)?;
-    let scenes = if args.scenes.is_empty() { phr_bench::suite::suite_files(SCENES)? } else { args.scenes.clone() };
+    let scenes = if args.scenes.is_empty() { suite_files(THESIS_SCENES)? } else { args.scenes.clone() };
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let progress = bar(scenes.len() as u64);
     let (mut rows, mut infos) = (Vec::new(), Vec::new());

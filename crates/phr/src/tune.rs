@@ -8,14 +8,13 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_bench::frame::median_frame;
+use phr_bench::tune_bench::calibrate;
 use phr_bvh::phr::PhrOptions;
-use phr_render::camera::CameraDesc;
 use phr_render::geometry::Geometry;
 use phr_render::scene::RenderSettings;
-use phr_render::Scene;
 use phr_tune::bayes::BoOptions;
 use phr_tune::grid::{THESIS_ALPHAS, THESIS_DELTAS};
-use phr_tune::objective::{FrameTimeModel, OMEGA_P, OMEGA_R};
+use phr_tune::objective::{OMEGA_P, OMEGA_R};
 use phr_tune::tune::{tune, Method, ObjectiveKind, TuneOptions, TuneResult};
 use phr_tune::{PhrEvaluator, SearchBox};
 use std::path::PathBuf;
@@ -75,29 +74,6 @@ pub struct TuneArgs {
     /// Cache file for the thesis objective's maxima.
     #[arg(long, default_value = "phr-tune-cache.json")]
     pub cache: PathBuf,
-}
-
-/// The calibrated frame-time model: builds and renders at the box's two corners.
-pub fn calibrate(
-    evaluator: &PhrEvaluator,
-    scene: &Scene,
-    geometry: &mut Geometry,
-    view: &CameraDesc,
-    settings: &RenderSettings,
-    search: &SearchBox,
-) -> FrameTimeModel {
-    let mut builds = Vec::new();
-    let mut renders = Vec::new();
-    let mut rays_sum = 0.0;
-    let corners = [search.lower, search.upper];
-    for [a, d] in corners {
-        let e = evaluator.evaluate(a, d);
-        let (ms, rays) = median_frame(scene, geometry, evaluator.build(a, d), view, settings);
-        builds.push(e);
-        renders.push((e.sah_cost, rays, ms));
-        rays_sum += rays;
-    }
-    FrameTimeModel::calibrate(&builds, &renders, rays_sum / corners.len() as f64)
 }
 
 pub fn run(args: &TuneArgs) -> Result<()> {

@@ -1,0 +1,149 @@
+//! `phr bench-build`: one builder on one mesh: build time (the auxiliary LBVH and PHR shown
+//! apart), SAH cost with the constants (1, 1) and the thesis's (2, 1), PHR's `Σ |cut|`, and
+//! closest-hit throughput of one fixed ray set per mesh.
+//!
+//! Build: median of `repeats` builds from the primitive boxes. Rays: the primary rays of a
+//! square image from the mesh's framing camera, and one diffuse bounce from each primary hit
+//! ([`RaySet`]): coherent and incoherent rays. The same rays are traced through every
+//! builder's tree.
+
+use crate::rays::RaySet;
+use crate::throughput::{mean_counts, throughput};
+use phr_bvh::{sah_cost, Builder, Ray, SahConstants, TraversalStats};
+use phr_render::geometry::Geometry;
+use phr_render::output::write_atomically;
+use std::io::Write;
+use std::path::Path;
+use std::time::Duration;
+
+/// One builder on one mesh with one thread count.
+#[derive(Clone, Debug)]
+pub struct BuildRow {
+    pub mesh: String,
+    pub triangles: usize,
+    pub threads: usize,
+    pub builder: String,
+    pub aux_ms: f64,
+    pub build_ms: f64,
+    pub total_ms: f64,
+    pub sah_11: f64,
+    pub sah_21: f64,
+    /// PHR's `Σ |cut|` (PHR builders only).
+    pub build_cost: Option<u64>,
+    pub primary_mrays: f64,
+    pub diffuse_mrays: f64,
+    pub diffuse_nodes_per_ray: f64,
+    pub diffuse_prims_per_ray: f64,
+}
+
+/// Builds `geometry`'s tree with `builder` `repeats` times (in the current rayon pool,
+/// which has `threads` threads), keeps the median build, and traces `rays` through it.
+pub fn measure_builder(
+    mesh: &str,
+    geometry: &mut Geometry,
+    rays: &RaySet,
+    builder: &Builder,
+    repeats: usize,
+    threads: usize,
+) -> BuildRow {
+    let mut reports: Vec<_> = (0..repeats.max(1))
+        .map(|_| {
+            let report = builder.build_timed(&geometry.boxes);
+            (report.total_time(), report)
+        })
+        .collect();
+    reports.sort_by_key(|r| r.0);
+    let report = reports.swap_remove(reports.len() / 2).1;
+    let ms = |d: Duration| d.as_secs_f64() * 1e3;
+    let (aux_ms, build_ms, total_ms) = (ms(report.aux_time), ms(report.build_time), ms(report.total_time()));
+    let build_cost = report.phr.map(|s| s.build_cost);
+    geometry.set_bvh(report.bvh);
+    let trace = |r: &Ray| geometry.intersect(r).is_some();
+    let (primary_mrays, diffuse_mrays) = (throughput(&rays.primary, 3, trace), throughput(&rays.diffuse, 3, trace));
+    let [diffuse_nodes_per_ray, diffuse_prims_per_ray] = mean_counts(&rays.diffuse, |r| {
+        let mut s = TraversalStats::default();
+        geometry.intersect_counted(r, &mut s);
+        [s.nodes as u64, s.prims as u64]
+    });
+    BuildRow {
+        mesh: mesh.into(),
+        triangles: geometry.triangles.len(),
+        threads,
+        builder: builder.to_string(),
+        aux_ms,
+        build_ms,
+        total_ms,
+        sah_11: sah_cost(geometry.bvh(), SahConstants::UNIT),
+        sah_21: sah_cost(geometry.bvh(), SahConstants::THESIS),
+        build_cost,
+        primary_mrays,
+        diffuse_mrays,
+        diffuse_nodes_per_ray,
+        diffuse_prims_per_ray,
+    }
+}
+
+/// The columns: CSV name, console heading, console width.
+pub const COLUMNS: [(&str, &str, usize); 14] = [
+    ("mesh", "mesh", 36),
+    ("triangles", "tris", 8),
+    ("threads", "thr", 3),
+    ("builder", "builder", 12),
+    ("aux_ms", "aux ms", 8),
+    ("build_ms", "build ms", 9),
+    ("total_ms", "total ms", 9),
+    ("sah_cost_1_1", "SAH11", 7),
+    ("sah_cost_2_1", "SAH21", 7),
+    ("build_cost", "Σ|cut|", 9),
+    ("primary_mrays_per_s", "prim Mr/s", 9),
+    ("diffuse_mrays_per_s", "diff Mr/s", 9),
+    ("diffuse_nodes_per_ray", "diff nodes", 10),
+    ("diffuse_prims_per_ray", "diff prims", 10),
+];
+
+impl BuildRow {
+    /// The row's values, in [`COLUMNS`] order.
+    pub fn cells(&self) -> [String; 14] {
+        [
+            self.mesh.clone(),
+            self.triangles.to_string(),
+            self.threads.to_string(),
+            self.builder.clone(),
+            format!("{:.3}", self.aux_ms),
+            format!("{:.3}", self.build_ms),
+            format!("{:.3}", self.total_ms),
+            format!("{:.4}", self.sah_11),
+            format!("{:.4}", self.sah_21),
+            self.build_cost.map_or(String::new(), |c| c.to_string()),
+            format!("{:.3}", self.primary_mrays),
+            format!("{:.3}", self.diffuse_mrays),
+            format!("{:.2}", self.diffuse_nodes_per_ray),
+            format!("{:.2}", self.diffuse_prims_per_ray),
+        ]
+    }
+}
+
+/// The rows as a console table (right-aligned columns of [`COLUMNS`]' widths).
+pub fn table(rows: &[BuildRow]) -> String {
+    let line = |cells: &mut dyn Iterator<Item = String>| {
+        let padded: Vec<String> = cells.zip(COLUMNS).map(|(c, (_, _, w))| format!("{c:>w$}")).collect();
+        padded.join(" ") + "\n"
+    };
+    let mut out = line(&mut COLUMNS.iter().map(|c| c.1.to_string()));
+    for r in rows {
+        out += &line(&mut r.cells().into_iter());
+    }
+    out
+}
+
+/// Writes the rows as CSV (all or nothing).
+pub fn write_csv(path: &Path, rows: &[BuildRow]) -> std::io::Result<()> {
+    write_atomically(path, |tmp| {
+        let mut f = std::io::BufWriter::new(std::fs::File::create(tmp)?);
+        writeln!(f, "{}", COLUMNS.map(|c| c.0).join(","))?;
+        for r in rows {
+            writeln!(f, "{}", r.cells().join(","))?;
+        }
+        f.flush()
+    })
+}
