@@ -14,10 +14,13 @@ pub struct Ray {
 }
 
 impl Ray {
+    /// (Inlined across crates: the renderer makes one per path segment.)
+    #[inline]
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
         Self::with_interval(origin, dir, 0.0, f32::INFINITY)
     }
 
+    #[inline]
     pub fn with_interval(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Self {
         Self { origin, dir, inv_dir: safe_recip(dir), tmin, tmax }
     }
