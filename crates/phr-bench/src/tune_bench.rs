@@ -138,11 +138,6 @@ fn thesis_box(method: Method, objective: ObjectiveKind) -> TuneOptions {
     TuneOptions { method, objective, search: SearchBox::THESIS, cache: None }
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// BO's gap to the dense grid under `objective` over the seeds (median, largest, in %), and
 /// the first seed's choice.
 fn bo_gap(options: &TuneBenchOptions, evaluator: &PhrEvaluator, objective: ObjectiveKind) -> ((f64, f64), (f64, f64)) {
@@ -159,8 +154,8 @@ fn bo_gap(options: &TuneBenchOptions, evaluator: &PhrEvaluator, objective: Objec
         gaps.push((bo.best_value / grid_best - 1.0) * 100.0);
         first.get_or_insert((bo.best.alpha, bo.best.delta));
     }
-    let largest = gaps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    ((median(gaps), largest), first.expect("at least one seed"))
+    let gap = crate::Stat::of(gaps);
+    ((gap.median, gap.max), first.expect("at least one seed"))
 }
 
 /// The median of three builds plus the median of three frames, ms.

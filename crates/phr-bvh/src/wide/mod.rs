@@ -33,6 +33,8 @@
 //! - [`simd`]: the ray-versus-`N`-boxes kernels: scalar (any target), SSE (4 lanes; two halves
 //!   for 8) and AVX2 (8 lanes), chosen by [`SimdLevel`] once per tree (runtime feature
 //!   detection in [`SimdLevel::detect`]), not per ray.
+//! - [`child_order`] (x86_64): the branch-free order of three or more hit children, a
+//!   bitonic sorting network in one AVX2 register.
 //! - `traverse`: the ordered stack traversal, the same algorithm as the binary reference:
 //!   hit children sorted by entry distance, nearest visited first, the others pushed with
 //!   their entry distance and skipped when popped if that distance exceeds the closest hit
@@ -66,6 +68,8 @@
 //! and what was tried and did not pay, are in `docs/bench-rays/` (`bench-rays.md`, the latest
 //! run, and `history.md`).
 
+#[cfg(target_arch = "x86_64")]
+pub mod child_order;
 pub mod collapse;
 pub mod simd;
 mod traverse;

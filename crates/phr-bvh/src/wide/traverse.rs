@@ -4,11 +4,10 @@
 //! - no child hit: pop;
 //! - one child hit: go there (no stack traffic, the common case deep in the tree);
 //! - two (closest hit): push the farther, go to the nearer;
-//! - more (closest hit): push them all, farthest first, and pop the nearest. The AVX2 kernel
-//!   sorts them with a bitonic network in one register and pushes them with one vector store
-//!   per stack array, without a branch per child (measured in `docs/bench-frame/history.md`:
-//!   +5–8 % on Sponza's and Conference's incoherent rays); the other kernels use an insertion
-//!   sort on the keys `t_bits << 32 | slot` and push one child at a time.
+//! - more (closest hit): push all but the nearest, farthest first, and go to the nearest. The
+//!   AVX2 kernel sorts them without a branch per child ([`super::child_order`]: +5–8 % on
+//!   Sponza's and Conference's incoherent rays); the other kernels use an insertion sort on
+//!   the keys `t_bits << 32 | slot` and push one child at a time.
 //!
 //! Any-hit queries push the hit children unsorted (the first hit ends the query wherever it
 //! is found).
@@ -120,10 +119,10 @@ trait Kernel<const N: usize> {
     /// The CPU must support the kernel's instructions.
     unsafe fn test(node: &WideNode<N>, r: &RayPre, tmax: f32, t: &mut [f32; N]) -> u32;
 
-    /// Pushes the children of `node` in `mask` (at least two) with their entry distances
-    /// `t`, farthest first, so that the nearest is on top. By default an insertion sort on
-    /// the keys `t_bits << 32 | slot`, then one push per child, which also asks for the
-    /// child's data to be loaded.
+    /// Orders the children of `node` in `mask` (at least two) by their entry distances `t`:
+    /// pushes all but the nearest, farthest first, and returns the nearest (to visit next).
+    /// By default an insertion sort on the keys `t_bits << 32 | slot`, then one push per
+    /// child, which also asks for the child's data to be loaded.
     ///
     /// # Safety
     /// The CPU must support the kernel's instructions; room on the stack as [`Stack`] says.
@@ -135,7 +134,7 @@ trait Kernel<const N: usize> {
         nodes: &[WideNode<N>],
         leaves: &V,
         stack: &mut Stack,
-    ) {
+    ) -> Entry {
         // Entry distances are >= tmin; for tmin >= 0 their bit patterns order like the
         // floats (a negative tmin only changes the visit order, never the result).
         let mut keys = [0u64; N];
@@ -153,11 +152,13 @@ trait Kernel<const N: usize> {
             keys[j] = key;
             k += 1;
         }
-        for &key in keys[..k].iter().rev() {
+        for &key in keys[1..k].iter().rev() {
             let i = (key & 0xff) as usize;
             // SAFETY: the caller guarantees room.
             unsafe { push(node, i, t[i], nodes, leaves, stack) };
         }
+        let i = (keys[0] & 0xff) as usize;
+        Entry { child: node.child[i], count: node.count[i], t: t[i] }
     }
 }
 
@@ -209,12 +210,15 @@ impl Kernel<8> for Avx2Kernel {
         _nodes: &[WideNode<8>],
         _leaves: &V,
         stack: &mut Stack,
-    ) {
-        // SAFETY: AVX2 as for `test`; the stack has room for 8 more entries.
+    ) -> Entry {
+        // All hit children go on the stack in one store per array; the nearest is on top.
+        // SAFETY: AVX2 as for `test`; the stack has room for 8 more entries, and at least
+        // two were pushed.
         unsafe {
-            super::simd::push_sorted_avx8(node, t, mask, stack.child, stack.count, stack.t, stack.sp);
+            super::child_order::push_sorted_avx8(node, t, mask, stack.child, stack.count, stack.t, stack.sp);
+            stack.sp += mask.count_ones() as usize;
+            stack.pop()
         }
-        stack.sp += mask.count_ones() as usize;
     }
 }
 
@@ -240,7 +244,8 @@ unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, 
     if nodes.is_empty() || !(ray.origin.is_finite() && ray.dir.is_finite() && ray.inv_dir.is_finite()) {
         return false;
     }
-    // Room for `stack_bound + N + 1` entries per array (see `Stack`).
+    // Room for `stack_bound + N + 1` entries per array (see `Stack`), for nodes of up to 16
+    // children (array lengths cannot depend on `N`).
     const ROOM: usize = INLINE_STACK + 16 + 1;
     let mut inline_child = [MaybeUninit::<u32>::uninit(); ROOM];
     let mut inline_count = [MaybeUninit::<u32>::uninit(); ROOM];
@@ -309,9 +314,10 @@ unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, 
                     cur = Entry { child: node.child[near], count: node.count[near], t: t[near] };
                     continue;
                 }
-                // Several children: push them sorted, the nearest on top, and pop it below.
+                // Several children: push all but the nearest, farthest first; go to the nearest.
                 // SAFETY: see `Stack`; the caller guarantees the kernel's instructions.
-                unsafe { K::push_sorted(node, &t, mask, nodes, leaves, &mut stack) };
+                cur = unsafe { K::push_sorted(node, &t, mask, nodes, leaves, &mut stack) };
+                continue;
             }
         } else {
             if COUNT {
