@@ -3,9 +3,8 @@
 //! α and δ; each point keeps the median build time of `repeats` builds.
 
 use crate::Progress;
-use phr_bvh::builder::PHR_AUX;
-use phr_bvh::phr::{build_phr_with, AuxCounts, PhrOptions};
-use phr_bvh::{build_lbvh, sah_cost, Aabb, SahConstants};
+use phr_bvh::phr::{build_phr, AuxTree, PhrOptions};
+use phr_bvh::{sah_cost, Aabb, SahConstants};
 use std::time::Instant;
 
 /// One (α, δ) point.
@@ -39,8 +38,7 @@ pub fn measure_cut_cost(
     repeats: usize,
     progress: &dyn Progress,
 ) -> Vec<CutCostPoint> {
-    let aux = build_lbvh(boxes, PHR_AUX);
-    let counts = AuxCounts::new(&aux);
+    let aux = AuxTree::build(boxes);
     let mut points = Vec::new();
     for &alpha in alphas {
         for &delta in deltas {
@@ -48,7 +46,7 @@ pub fn measure_cut_cost(
             let mut runs: Vec<(f64, u64, f64)> = (0..repeats.max(1))
                 .map(|_| {
                     let start = Instant::now();
-                    let (bvh, stats) = build_phr_with(&aux, &counts, &options);
+                    let (bvh, stats) = build_phr(&aux, &options);
                     let ms = start.elapsed().as_secs_f64() * 1e3;
                     (ms, stats.build_cost, sah_cost(&bvh, SahConstants::UNIT))
                 })

@@ -9,7 +9,7 @@ use crate::aabb::Aabb;
 use crate::binned_sah::{build_binned_sah, BinnedSahOptions};
 use crate::lbvh::{build_lbvh, LbvhOptions};
 use crate::node::Bvh;
-use crate::phr::{build_phr, PhrOptions, PhrStats};
+use crate::phr::{build_phr, AuxTree, PhrOptions, PhrStats};
 use crate::sweep_sah::{build_sweep_sah, SweepSahOptions};
 use std::fmt;
 use std::str::FromStr;
@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 pub enum Builder {
     /// [`crate::lbvh`] with leaves of at most `max_leaf_size` primitives.
     Lbvh(LbvhOptions),
-    /// [`crate::phr`] over an auxiliary LBVH with one primitive per leaf.
+    /// [`crate::phr`] over its auxiliary tree ([`AuxTree`]: the LBVH with one primitive per leaf).
     Phr(PhrOptions),
     SweepSah(SweepSahOptions),
     BinnedSah(BinnedSahOptions),
@@ -30,9 +30,6 @@ impl Default for Builder {
         Builder::Lbvh(LbvhOptions::default())
     }
 }
-
-/// The auxiliary tree PHR refines: the full radix tree.
-pub const PHR_AUX: LbvhOptions = LbvhOptions { max_leaf_size: 1 };
 
 /// A build with its timings.
 #[derive(Clone, Debug)]
@@ -64,7 +61,7 @@ impl Builder {
         let start = Instant::now();
         match self {
             Builder::Phr(o) => {
-                let aux = build_lbvh(boxes, PHR_AUX);
+                let aux = AuxTree::build(boxes);
                 let aux_time = start.elapsed();
                 let (bvh, stats) = build_phr(&aux, o);
                 BuildReport { bvh, aux_time, build_time: start.elapsed() - aux_time, phr: Some(stats) }

@@ -4,19 +4,14 @@
 //! as a hierarchy of candidate clusters, so the render tree stays good.
 
 use crate::aabb::Aabb;
-use crate::builder::PHR_AUX;
-use crate::lbvh::build_lbvh;
 use crate::node::Bvh;
-use crate::phr::{build_phr_with, AuxCounts, PhrOptions};
-use crate::refit::refit;
+use crate::phr::{build_phr, AuxTree, PhrOptions};
 use std::time::{Duration, Instant};
 
 /// The auxiliary tree of an animated primitive set, from which each frame's render tree is
 /// built.
 pub struct DynamicBvh {
-    aux: Bvh,
-    /// The auxiliary tree's counts: its topology never changes, so neither do they.
-    counts: AuxCounts,
+    aux: AuxTree,
     options: PhrOptions,
 }
 
@@ -32,9 +27,7 @@ pub struct FrameTimings {
 impl DynamicBvh {
     /// Builds the auxiliary LBVH over the primitives' first-frame boxes.
     pub fn new(boxes: &[Aabb], options: PhrOptions) -> Self {
-        let aux = build_lbvh(boxes, PHR_AUX);
-        let counts = AuxCounts::new(&aux);
-        Self { aux, counts, options }
+        Self { aux: AuxTree::build(boxes), options }
     }
 
     /// Refits the auxiliary tree to `boxes` (same primitives, moved) and builds the render
@@ -42,9 +35,9 @@ impl DynamicBvh {
     pub fn update(&mut self, boxes: &[Aabb]) -> (Bvh, FrameTimings) {
         assert_eq!(boxes.len(), self.aux.prim_count(), "a dynamic scene keeps its primitives");
         let start = Instant::now();
-        refit(&mut self.aux, boxes);
+        self.aux.refit(boxes);
         let refit_time = start.elapsed();
-        let (render, stats) = build_phr_with(&self.aux, &self.counts, &self.options);
+        let (render, stats) = build_phr(&self.aux, &self.options);
         let timings =
             FrameTimings { refit: refit_time, build: start.elapsed() - refit_time, build_cost: stats.build_cost };
         (render, timings)
@@ -54,7 +47,7 @@ impl DynamicBvh {
         self.options = options;
     }
 
-    pub fn aux(&self) -> &Bvh {
+    pub fn aux(&self) -> &AuxTree {
         &self.aux
     }
 }

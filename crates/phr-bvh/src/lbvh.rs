@@ -62,7 +62,7 @@ pub fn build_topology(boxes: &[Aabb], max_leaf_size: usize) -> Bvh {
 }
 
 /// Morton codes of the box centres, sorted, paired with their primitive index.
-fn sorted_morton_codes(boxes: &[Aabb]) -> Vec<(u64, u32)> {
+pub(crate) fn sorted_morton_codes(boxes: &[Aabb]) -> Vec<(u64, u32)> {
     let centroid_bounds =
         boxes.par_iter().fold(|| Aabb::EMPTY, |acc, b| acc.grown(b.center())).reduce(|| Aabb::EMPTY, Aabb::union);
     let quantizer = MortonQuantizer::new(&centroid_bounds);

@@ -6,9 +6,10 @@
 //! Nothing here knows about files, materials or images.
 //!
 //! Builders, each in a module named after its algorithm:
-//! - [`lbvh`]: the linear BVH (Morton codes + radix sort + radix tree), the fast builder and
-//!   the auxiliary tree of PHR.
-//! - [`phr`]: Progressive Hierarchical Refinement, the builder the thesis is about.
+//! - [`lbvh`]: the linear BVH (Morton codes + radix sort + radix tree), the fast builder.
+//! - [`phr`]: Progressive Hierarchical Refinement, the builder the thesis is about, over its
+//!   auxiliary tree ([`phr::AuxTree`]: the same radix tree with one primitive per leaf, laid
+//!   out for opening nodes and for refitting every frame).
 //! - [`sweep_sah`]: the full-sweep SAH builder, the quality reference PHR approximates.
 //! - [`binned_sah`]: the binned SAH builder, what Embree, pbrt and tinybvh use by default.
 //!

@@ -84,7 +84,8 @@ pub struct Bvh {
     pub nodes: Vec<Node>,
     /// Leaves index into this array; it holds every primitive index exactly once.
     pub prim_indices: Vec<u32>,
-    /// Parent of each node ([`NO_PARENT`] for the root); used by the bottom-up refit.
+    /// Parent of each node ([`NO_PARENT`] for the root), for the bottom-up refit; empty when
+    /// the builder had no use for it (the top-down builders), and then computed by the refit.
     pub parents: Vec<u32>,
 }
 

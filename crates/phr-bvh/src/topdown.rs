@@ -111,9 +111,8 @@ pub(crate) fn assemble(root: Built) -> Bvh {
         }
         out_prims.copy_from_slice(&p.piece.prims);
     });
-    let mut bvh = Bvh { nodes, prim_indices, parents: Vec::new() };
-    bvh.compute_parents();
-    bvh
+    // No parents: a top-down tree is rebuilt, not refit (`refit` computes them if needed).
+    Bvh { nodes, prim_indices, parents: Vec::new() }
 }
 
 fn relocate(p: &Placement, local: usize) -> Node {

@@ -5,8 +5,8 @@ mod common;
 
 use common::*;
 use glam::Vec3;
-use phr_bvh::phr::{build_phr, CutWeight, PhrOptions};
-use phr_bvh::{build_lbvh, sah_cost, validate, Builder, LbvhOptions, SahConstants};
+use phr_bvh::phr::{build_phr, AuxTree, CutWeight, PhrOptions};
+use phr_bvh::{sah_cost, validate, Builder, SahConstants};
 
 fn all_builders() -> Vec<Builder> {
     let mut builders: Vec<Builder> =
@@ -63,7 +63,7 @@ fn single_node_cuts_never_become_giant_leaves() {
     let boxes = triangle_boxes(&tris);
     for (alpha, delta) in [(0.0, 0.0), (0.1, 0.0), (0.5, 1.0)] {
         let options = PhrOptions::with(alpha, delta);
-        let aux = build_lbvh(&boxes, LbvhOptions { max_leaf_size: 1 });
+        let aux = AuxTree::build(&boxes);
         let (bvh, stats) = build_phr(&aux, &options);
         validate(&bvh, &boxes, options.leaf.max_leaf_size).unwrap();
         assert!(stats.initial_cut >= 1 && stats.build_cost > 0);
@@ -91,7 +91,7 @@ fn phr_quality_approaches_the_full_sweep() {
 fn build_cost_grows_with_refinement() {
     let mut rng = Rng::new(4);
     let tris = random_soup(30_000, 1.0, &mut rng);
-    let aux = build_lbvh(&triangle_boxes(&tris), LbvhOptions { max_leaf_size: 1 });
+    let aux = AuxTree::build(&triangle_boxes(&tris));
     let b = |alpha, delta| build_phr(&aux, &PhrOptions::with(alpha, delta)).1.build_cost;
     assert!(b(0.5, 6.0) < b(0.5, 9.0));
     assert!(b(0.4, 8.0) < b(0.6, 8.0));

@@ -2,9 +2,8 @@
 //! build cost `b = Σ |cut|`, the SAH cost `c` (traversal 2, intersection 1, as the thesis) and
 //! the build time. Builds are deterministic, so `b` and `c` are cached per (α, δ).
 
-use phr_bvh::builder::PHR_AUX;
-use phr_bvh::phr::{build_phr_with, AuxCounts, PhrOptions};
-use phr_bvh::{build_lbvh, sah_cost, Aabb, Bvh, SahConstants};
+use phr_bvh::phr::{build_phr, AuxTree, PhrOptions};
+use phr_bvh::{sah_cost, Aabb, Bvh, SahConstants};
 use std::collections::HashMap;
 use std::sync::Mutex;
 use std::time::Instant;
@@ -29,8 +28,7 @@ pub type BuildCallback = Box<dyn Fn(&Evaluation) + Send + Sync>;
 pub struct PhrEvaluator {
     /// Called after every new build (progress display).
     on_build: Option<BuildCallback>,
-    aux: Bvh,
-    counts: AuxCounts,
+    aux: AuxTree,
     base: PhrOptions,
     cache: Mutex<HashMap<(u64, u64), Evaluation>>,
     /// Primitives in the scene.
@@ -40,9 +38,7 @@ pub struct PhrEvaluator {
 impl PhrEvaluator {
     /// Builds the auxiliary LBVH over `boxes`; `base` gives everything but α and δ.
     pub fn new(boxes: &[Aabb], base: PhrOptions) -> Self {
-        let aux = build_lbvh(boxes, PHR_AUX);
-        let counts = AuxCounts::new(&aux);
-        Self { on_build: None, aux, counts, base, cache: Mutex::new(HashMap::new()), prims: boxes.len() }
+        Self { on_build: None, aux: AuxTree::build(boxes), base, cache: Mutex::new(HashMap::new()), prims: boxes.len() }
     }
 
     /// Calls `f` after every new (uncached) build.
@@ -58,14 +54,14 @@ impl PhrEvaluator {
 
     /// Builds the tree at (α, δ) (for rendering with it).
     pub fn build(&self, alpha: f64, delta: f64) -> Bvh {
-        build_phr_with(&self.aux, &self.counts, &self.options(alpha, delta)).0
+        build_phr(&self.aux, &self.options(alpha, delta)).0
     }
 
     /// Builds (α, δ) afresh and times it, bypassing the cache (whose timings may come from
     /// builds run in parallel, as in grid search).
     pub fn measure(&self, alpha: f64, delta: f64) -> Evaluation {
         let start = Instant::now();
-        let (bvh, stats) = build_phr_with(&self.aux, &self.counts, &self.options(alpha, delta));
+        let (bvh, stats) = build_phr(&self.aux, &self.options(alpha, delta));
         let build_ms = start.elapsed().as_secs_f64() * 1e3;
         Evaluation {
             alpha,
@@ -83,7 +79,7 @@ impl PhrEvaluator {
             return *e;
         }
         let start = Instant::now();
-        let (bvh, stats) = build_phr_with(&self.aux, &self.counts, &self.options(alpha, delta));
+        let (bvh, stats) = build_phr(&self.aux, &self.options(alpha, delta));
         let build_ms = start.elapsed().as_secs_f64() * 1e3;
         let e = Evaluation {
             alpha,

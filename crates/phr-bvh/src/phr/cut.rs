@@ -8,9 +8,8 @@
 //! the split decisions; small ones only when the recursion has come down to their scale,
 //! which is where PHR saves its time.
 
-use super::{AuxCounts, CutWeight};
+use super::aux_tree::{AuxNode, AuxTree};
 use crate::aabb::Aabb;
-use crate::node::Bvh;
 use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -18,61 +17,46 @@ use std::collections::BinaryHeap;
 /// Below this many primitives the initial cut is collected sequentially.
 const PARALLEL_CUT_GRAIN: u32 = 1 << 14;
 
-/// One auxiliary node in a cut.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CutNode {
-    pub bounds: Aabb,
-    /// Index in the auxiliary tree.
-    pub index: u32,
-    /// Primitives under it.
-    pub prims: u32,
-    /// Its weight in the sweep (see [`CutWeight`]).
-    pub weight: f32,
+/// One auxiliary node in a cut: a copy of the node itself (box, children or primitive, and
+/// primitive count), so the hot loops never chase indices into the auxiliary tree.
+pub type CutNode = AuxNode;
+
+/// A key that tells the nodes of one tree apart (for deterministic tie-breaks): leaves have
+/// one primitive and interior nodes more, and `first` is unique within each kind.
+#[inline]
+pub fn node_key(n: &CutNode) -> (u32, u32) {
+    (n.prims, n.first)
 }
 
-/// The auxiliary tree and its per-node counts, with the weight the build uses.
+/// The auxiliary tree, as PHR opens it.
 #[derive(Clone, Copy)]
 pub struct AuxView<'a> {
-    pub bvh: &'a Bvh,
-    pub counts: &'a AuxCounts,
-    pub weight: CutWeight,
+    pub tree: &'a AuxTree,
 }
 
 impl AuxView<'_> {
-    #[inline]
-    pub fn cut_node(&self, index: u32) -> CutNode {
-        let i = index as usize;
-        let [prims, nodes] = self.counts.counts[i];
-        let weight = match self.weight {
-            CutWeight::AuxNodes => nodes as f32,
-            CutWeight::Primitives => prims as f32,
-        };
-        CutNode { bounds: self.bvh.nodes[i].bounds, index, prims, weight }
-    }
-
-    #[inline]
-    pub fn is_leaf(&self, node: &CutNode) -> bool {
-        self.bvh.nodes[node.index as usize].is_leaf()
-    }
-
     /// Appends the children of `node` (an interior auxiliary node) to `out`.
     #[inline]
     pub fn push_children(&self, node: &CutNode, out: &mut Vec<CutNode>) {
-        out.extend(self.bvh.nodes[node.index as usize].children().map(|c| self.cut_node(c)));
+        let children = self.tree.children(node);
+        // Most cut nodes are opened later: start loading their children now.
+        self.tree.prefetch_children(&children[0]);
+        self.tree.prefetch_children(&children[1]);
+        out.extend_from_slice(children);
     }
 
     /// Appends to `out` what `node` becomes when every node at or above area `t` in its
     /// subtree is opened. `stack` is scratch space.
     #[inline]
     pub fn refine_into(&self, node: CutNode, t: f32, out: &mut Vec<CutNode>, stack: &mut Vec<CutNode>) {
-        if node.bounds.surface_area() < t || self.is_leaf(&node) {
+        if node.bounds.surface_area() < t || node.is_leaf() {
             out.push(node);
             return;
         }
         stack.clear();
         stack.push(node);
         while let Some(n) = stack.pop() {
-            if n.bounds.surface_area() < t || self.is_leaf(&n) {
+            if n.bounds.surface_area() < t || n.is_leaf() {
                 out.push(n);
             } else {
                 self.push_children(&n, stack);
@@ -81,15 +65,14 @@ impl AuxView<'_> {
     }
 
     /// The primitives under `node`, appended to `out`.
-    pub fn gather_prims(&self, node: &CutNode, out: &mut Vec<u32>, stack: &mut Vec<u32>) {
+    pub fn gather_prims(&self, node: &CutNode, out: &mut Vec<u32>, stack: &mut Vec<CutNode>) {
         stack.clear();
-        stack.push(node.index);
-        while let Some(i) = stack.pop() {
-            let n = &self.bvh.nodes[i as usize];
+        stack.push(*node);
+        while let Some(n) = stack.pop() {
             if n.is_leaf() {
-                out.extend_from_slice(self.bvh.leaf_prims(n));
+                out.push(n.first);
             } else {
-                stack.extend(n.children());
+                self.push_children(&n, stack);
             }
         }
     }
@@ -105,7 +88,8 @@ pub fn threshold(scene_area: f32, alpha: f32, delta: f32, depth: u32) -> f32 {
 /// plus the leaves reached above it. Walked top-down in parallel. If that is more than
 /// `max_size` nodes, the largest nodes are opened first, until the cap is reached.
 pub fn initial_cut(aux: &AuxView, t0: f32, max_size: Option<usize>) -> Vec<CutNode> {
-    let cut = collect_below(aux, aux.cut_node(0), t0);
+    let Some(&root) = aux.tree.root() else { return Vec::new() };
+    let cut = collect_below(aux, root, t0);
     match max_size {
         Some(cap) if cut.len() > cap => capped_cut(aux, t0, cap),
         _ => cut,
@@ -113,7 +97,7 @@ pub fn initial_cut(aux: &AuxView, t0: f32, max_size: Option<usize>) -> Vec<CutNo
 }
 
 fn collect_below(aux: &AuxView, node: CutNode, t: f32) -> Vec<CutNode> {
-    if aux.is_leaf(&node) || node.bounds.surface_area() < t {
+    if node.is_leaf() || node.bounds.surface_area() < t {
         return vec![node];
     }
     if node.prims < PARALLEL_CUT_GRAIN {
@@ -142,16 +126,15 @@ fn capped_cut(aux: &AuxView, t0: f32, cap: usize) -> Vec<CutNode> {
     }
     impl Ord for ByArea {
         fn cmp(&self, o: &Self) -> Ordering {
-            self.0.total_cmp(&o.0).then(o.1.index.cmp(&self.1.index))
+            self.0.total_cmp(&o.0).then(node_key(&o.1).cmp(&node_key(&self.1)))
         }
     }
-    let root = aux.cut_node(0);
+    let Some(&root) = aux.tree.root() else { return Vec::new() };
     let mut heap = BinaryHeap::from([ByArea(root.bounds.surface_area(), root)]);
     let mut done = Vec::new();
     let mut children = Vec::new();
     while let Some(ByArea(a, n)) = heap.pop() {
-        let k = aux.bvh.nodes[n.index as usize].child_count() as usize;
-        if aux.is_leaf(&n) || a < t0 || done.len() + heap.len() + k > cap {
+        if n.is_leaf() || a < t0 || done.len() + heap.len() + 2 > cap {
             done.push(n);
             continue;
         }

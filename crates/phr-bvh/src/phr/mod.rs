@@ -17,6 +17,7 @@
 //! With a branching factor k > 2 (a multi-BVH), a node splits the largest of its child cuts
 //! again until it has k children or no split pays off.
 
+pub mod aux_tree;
 pub mod cut;
 pub mod split;
 
@@ -24,6 +25,7 @@ use crate::aabb::Aabb;
 use crate::node::{Bvh, MAX_BRANCHING};
 use crate::sah::{LeafPolicy, MEDIAN_SPLIT_DEPTH};
 use crate::topdown::{assemble, Built, Piece};
+pub use aux_tree::AuxTree;
 use cut::{cut_bounds, cut_prims, AuxView, CutNode};
 use rayon::prelude::*;
 use split::{best_split, median_split, CutSplit, SplitScratch};
@@ -44,6 +46,18 @@ pub enum CutWeight {
     /// Primitives in its subtree (default).
     #[default]
     Primitives,
+}
+
+impl CutWeight {
+    /// The weight of a node with `prims` primitives under it. In the auxiliary tree (a full
+    /// binary tree with one primitive per leaf) such a node has `2 · prims − 1` nodes.
+    #[inline(always)]
+    pub fn of(self, prims: u32) -> f32 {
+        match self {
+            CutWeight::AuxNodes => (2 * prims - 1) as f32,
+            CutWeight::Primitives => prims as f32,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -100,53 +114,18 @@ pub struct PhrStats {
     pub initial_cut: usize,
 }
 
-/// Per-node counts of the auxiliary tree. They depend on its topology only, so a dynamic
-/// scene computes them once and keeps them across refits.
-#[derive(Clone, Debug, Default)]
-pub struct AuxCounts {
-    /// Per node: primitives under it, and nodes in its subtree (itself included). One array
-    /// of pairs, so that opening a node costs one cache miss for both.
-    pub counts: Vec<[u32; 2]>,
-}
-
-impl AuxCounts {
-    /// One reverse sweep: children always follow their parent in our layouts.
-    pub fn new(bvh: &Bvh) -> Self {
-        let n = bvh.nodes.len();
-        let mut counts = vec![[0u32, 1u32]; n];
-        for i in (0..n).rev() {
-            let node = &bvh.nodes[i];
-            if node.is_leaf() {
-                counts[i][0] = node.count;
-            } else {
-                for c in node.children() {
-                    let [p, k] = counts[c as usize];
-                    counts[i][0] += p;
-                    counts[i][1] += k;
-                }
-            }
-        }
-        Self { counts }
-    }
-}
-
 /// Above this many primitives a node's children are built as separate rayon tasks.
 const PARALLEL_GRAIN: u32 = 1 << 12;
 
-/// Builds a BVH from the auxiliary tree `aux` (any BVH of ours; the LBVH with one primitive
-/// per leaf is the intended input). The output indexes the same primitives.
-pub fn build_phr(aux: &Bvh, options: &PhrOptions) -> (Bvh, PhrStats) {
-    build_phr_with(aux, &AuxCounts::new(aux), options)
-}
-
-/// [`build_phr`] with the auxiliary tree's counts already computed.
-pub fn build_phr_with(aux: &Bvh, counts: &AuxCounts, options: &PhrOptions) -> (Bvh, PhrStats) {
-    if aux.nodes.is_empty() {
+/// Builds a BVH from the auxiliary tree `aux` (see [`AuxTree`]). The output indexes the same
+/// primitives.
+pub fn build_phr(aux: &AuxTree, options: &PhrOptions) -> (Bvh, PhrStats) {
+    let Some(root) = aux.root() else {
         return (Bvh::default(), PhrStats::default());
-    }
+    };
     let options = PhrOptions { branching: options.branching.clamp(2, MAX_BRANCHING as u32), ..*options };
-    let view = AuxView { bvh: aux, counts, weight: options.weight };
-    let scene_area = aux.nodes[0].bounds.surface_area();
+    let view = AuxView { tree: aux };
+    let scene_area = root.bounds.surface_area();
     let ctx = Ctx { aux: view, options, scene_area, build_cost: AtomicU64::new(0) };
     let t0 = cut::threshold(scene_area, options.alpha, options.delta, 0);
     let root_cut = cut::initial_cut(&view, t0, options.max_initial_cut);
@@ -177,7 +156,7 @@ struct Scratch {
     build_cost: u64,
     split: SplitScratch,
     cut_stack: Vec<CutNode>,
-    index_stack: Vec<u32>,
+    gather_stack: Vec<CutNode>,
 }
 
 struct Ctx<'a> {
@@ -262,11 +241,11 @@ impl Ctx<'_> {
 
     /// The split of a node's cut at `depth`: the full sweep, or the median past
     /// [`MEDIAN_SPLIT_DEPTH`].
-    fn split(cut: &mut [CutNode], depth: u32, scratch: &mut Scratch) -> CutSplit {
+    fn split(&self, cut: &mut [CutNode], depth: u32, scratch: &mut Scratch) -> CutSplit {
         if depth >= MEDIAN_SPLIT_DEPTH {
             median_split(cut)
         } else {
-            best_split(cut, &mut scratch.split)
+            best_split(cut, self.options.weight, &mut scratch.split)
         }
     }
 
@@ -277,7 +256,7 @@ impl Ctx<'_> {
         scratch.build_cost += (pool.len() - start) as u64;
         // A cut of one interior node is opened: a node with a single child would only add a
         // traversal step, and keeping it whole is the thesis code's giant-leaf defect.
-        while pool.len() - start == 1 && !self.aux.is_leaf(&pool[start]) {
+        while pool.len() - start == 1 && !pool[start].is_leaf() {
             let n = pool.pop().expect("non-empty");
             self.aux.push_children(&n, pool);
         }
@@ -288,7 +267,7 @@ impl Ctx<'_> {
         }
         let leaf = &self.options.leaf;
         let n = cut_prims(cut);
-        let first = Self::split(cut, depth, scratch);
+        let first = self.split(cut, depth, scratch);
         if !leaf.must_split(n) && leaf.prefers_leaf(n, bounds.surface_area(), first.area_count) {
             return (bounds, Ranges::LEAF);
         }
@@ -310,7 +289,7 @@ impl Ctx<'_> {
             let (a, b) = ranges.ranges[i];
             let sub = &mut cut[a as usize..b as usize];
             let n = cut_prims(sub);
-            let s = Self::split(sub, depth, scratch);
+            let s = self.split(sub, depth, scratch);
             if leaf.must_split(n) || !leaf.prefers_leaf(n, area, s.area_count) {
                 let mid = a + s.left_len as u32;
                 ranges.ranges[i] = (a, mid);
@@ -327,7 +306,7 @@ impl Ctx<'_> {
     fn gather(&self, cut: &[CutNode], scratch: &mut Scratch) -> Vec<u32> {
         let mut prims = Vec::with_capacity(cut_prims(cut) as usize);
         for n in cut {
-            self.aux.gather_prims(n, &mut prims, &mut scratch.index_stack);
+            self.aux.gather_prims(n, &mut prims, &mut scratch.gather_stack);
         }
         prims
     }

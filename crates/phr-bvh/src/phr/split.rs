@@ -9,7 +9,8 @@
 //! split at all is decided by the shared [`crate::sah::LeafPolicy`] on primitive counts, as for
 //! every other builder. The cut is reordered and split in place: no allocation.
 
-use super::cut::CutNode;
+use super::cut::{node_key, CutNode};
+use super::CutWeight;
 use crate::aabb::Aabb;
 
 /// The chosen split of a cut slice: after [`best_split`] the slice is sorted along the split
@@ -35,7 +36,7 @@ pub struct SplitScratch {
 /// Sorting moves 8-byte integer keys (the centroid coordinate's order-preserving bits above
 /// the node's position, so ties go by position), not the nodes; the nodes are permuted once,
 /// at the end. A cut of two nodes has only one split and skips all of it.
-pub fn best_split(cut: &mut [CutNode], scratch: &mut SplitScratch) -> CutSplit {
+pub fn best_split(cut: &mut [CutNode], weight: CutWeight, scratch: &mut SplitScratch) -> CutSplit {
     let m = cut.len();
     debug_assert!(m >= 2);
     if m == 2 {
@@ -44,7 +45,7 @@ pub fn best_split(cut: &mut [CutNode], scratch: &mut SplitScratch) -> CutSplit {
     if centres_coincide(cut) {
         return median_split(cut);
     }
-    let total_weight: f32 = cut.iter().map(|n| n.weight).sum();
+    let total_weight: f32 = cut.iter().map(|n| weight.of(n.prims)).sum();
     scratch.right_area.resize(m, 0.0);
     let mut best = (f32::INFINITY, m / 2);
     let mut found = false;
@@ -68,7 +69,7 @@ pub fn best_split(cut: &mut [CutNode], scratch: &mut SplitScratch) -> CutSplit {
         for k in 1..m {
             let n = at(k - 1);
             left = left.union(n.bounds);
-            left_weight += n.weight;
+            left_weight += weight.of(n.prims);
             let cost = left.surface_area() * left_weight + scratch.right_area[k] * (total_weight - left_weight);
             if cost < best.0 {
                 best = (cost, k);
@@ -101,7 +102,7 @@ pub fn median_split(cut: &mut [CutNode]) -> CutSplit {
     cut.sort_unstable_by(|a, b| {
         (a.bounds.min[axis] + a.bounds.max[axis])
             .total_cmp(&(b.bounds.min[axis] + b.bounds.max[axis]))
-            .then(a.index.cmp(&b.index))
+            .then(node_key(a).cmp(&node_key(b)))
     });
     let total: u64 = cut.iter().map(|n| u64::from(n.prims)).sum();
     let mut left = 0u64;
