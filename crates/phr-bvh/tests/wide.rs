@@ -368,3 +368,26 @@ fn non_finite_rays_hit_nothing_and_stay_memory_safe() {
         assert_eq!(bvh_hit(&bvh, &tris, ray), None, "binary, ray {ray:?}");
     }
 }
+
+#[test]
+fn large_trees_collapse_in_parallel_identically_and_correctly() {
+    // Above 8192 primitives the collapse splits its top into parallel tasks: the pieces
+    // must fit together (hits as brute force, invariants), whatever the thread count.
+    let mut rng = Rng::new(12);
+    let tris = random_soup(40_000, 1.0, &mut rng);
+    let boxes = triangle_boxes(&tris);
+    let rays = random_rays(boxes.iter().fold(phr_bvh::Aabb::EMPTY, |a, b| a.union(*b)), 300, &mut rng);
+    for builder in [Builder::PHR_FAST, "lbvh".parse().unwrap(), Builder::PHR_HQ.with_branching(8).unwrap()] {
+        let bvh = builder.build(&boxes);
+        let what = format!("40k soup, {builder}");
+        assert!(check_wide::<8>(&bvh, &tris, &rays, &what) > 0, "{what}: no hits");
+        check_wide::<4>(&bvh, &tris, &rays, &what);
+        let collapse = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| WideBvh::<8>::from_bvh(&bvh))
+        };
+        let (a, b) = (collapse(1), collapse(2));
+        assert_eq!(a.nodes, b.nodes, "{what}");
+        assert_eq!(a.prim_indices, b.prim_indices, "{what}");
+    }
+}

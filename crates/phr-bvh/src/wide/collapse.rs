@@ -15,9 +15,16 @@
 //!    triangles with one SIMD Möller–Trumbore, so a leaf of 4 costs about what a leaf of 1
 //!    does, and the nodes above the small leaves disappear). Larger source leaves are kept.
 //!
-//! Wide nodes are stored depth-first, the children of a node consecutively; leaf primitives
-//! are renumbered in the order the leaves are written, so each leaf is a contiguous range of
-//! [`super::WideBvh::prim_indices`]. Each leaf starts at a multiple of
+//! 4. **In parallel near the root.** While a subtree holds more than `PIECE_GRAIN`
+//!    primitives, the interior slots of its wide node are collapsed as separate rayon tasks;
+//!    smaller subtrees are collapsed by one task each, depth first, into a piece with local
+//!    indices. The top nodes are laid out first, the pieces after them (copied in parallel,
+//!    indices relocated), in an order that does not depend on the thread count. A dynamic
+//!    scene collapses every frame, so this is on its critical path.
+//!
+//! Within a piece, wide nodes are stored depth-first, the children of a node consecutively;
+//! leaf primitives are renumbered in the order the leaves are written, so each leaf is a
+//! contiguous range of [`super::WideBvh::prim_indices`]. Each leaf starts at a multiple of
 //! [`CollapseOptions::leaf_align`] (the gaps hold [`PAD`]), so a leaf of up to 4 triangles is
 //! one 4-lane block of the packed triangles.
 
@@ -25,8 +32,6 @@ use super::{WideNode, PAD};
 use crate::aabb::Aabb;
 use crate::node::Bvh;
 
-/// A node of the binary view: a leaf (`count > 0`, a range of the source's `prim_indices`)
-/// or an interior node with children `a` and `b`.
 /// How to collapse.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct CollapseOptions {
@@ -48,6 +53,8 @@ impl CollapseOptions {
     pub const KEEP_LEAVES: CollapseOptions = CollapseOptions { merge_leaves: 1, leaf_align: 1 };
 }
 
+/// A node of the binary view: a leaf (`count > 0`, a range of the source's `prim_indices`)
+/// or an interior node with children `a` and `b`.
 #[derive(Clone, Copy, Debug)]
 struct Bin {
     bounds: Aabb,
@@ -132,8 +139,9 @@ fn binary_view(src: &Bvh, scratch: Vec<Bin>) -> Vec<Bin> {
 }
 
 /// Appends the primitives of the subtree at `b` (in tree order) to `out`.
-fn subtree_prims(bins: &[Bin], src: &Bvh, b: u32, out: &mut Vec<u32>) {
-    let mut stack = vec![b];
+fn subtree_prims(bins: &[Bin], src: &Bvh, b: u32, out: &mut Vec<u32>, stack: &mut Vec<u32>) {
+    stack.clear();
+    stack.push(b);
     while let Some(i) = stack.pop() {
         let bin = &bins[i as usize];
         if bin.is_leaf() {
@@ -207,11 +215,245 @@ fn sah_split(src: &Bvh, mut members: Vec<u32>) -> (Task, Task) {
     (task(members), task(right))
 }
 
+/// Subtrees of at most this many primitives are collapsed by one task.
+const PIECE_GRAIN: u32 = 1 << 13;
+
+/// What the emission reads: the binary view, the source's primitives, the options.
+struct Emit<'a> {
+    bins: &'a [Bin],
+    src: &'a Bvh,
+    merge: u32,
+    align: usize,
+}
+
+/// Wide nodes and leaf primitives of one subtree, with local indices: its root is node 0,
+/// interior slots index `nodes`, leaf slots index `prims` (whose length is a multiple of the
+/// alignment, so the piece can be placed at any aligned offset). `bound` is the stack bound
+/// of the subtree, counted from the depth it was built at.
+struct WidePiece<const N: usize> {
+    nodes: Vec<WideNode<N>>,
+    prims: Vec<u32>,
+    bound: usize,
+}
+
+/// The result of collapsing a subtree: a piece, or (near the root, where subtrees are
+/// large) one wide node whose interior slots were collapsed as separate tasks.
+enum WideBuilt<const N: usize> {
+    Piece(WidePiece<N>),
+    Split {
+        /// The node, with its leaf slots indexing `leaf_prims` and interior slots unset.
+        node: WideNode<N>,
+        leaf_prims: Vec<u32>,
+        /// Interior slots and what fills them.
+        children: Vec<(usize, WideBuilt<N>)>,
+        bound: usize,
+    },
+}
+
+impl Emit<'_> {
+    /// A bin that becomes a leaf: a source leaf, or a subtree small enough to merge.
+    #[inline]
+    fn is_leaf(&self, b: u32) -> bool {
+        let bin = &self.bins[b as usize];
+        bin.is_leaf() || bin.prims <= self.merge
+    }
+
+    /// The slots of the wide node that `b` (a binary node) becomes: its two children, then
+    /// greedily the two children of the largest interior slot while there is room. A tree
+    /// that is a single leaf gives one slot, the leaf itself.
+    fn slots<const N: usize>(&self, b: u32) -> ([u32; N], usize) {
+        let mut kids = [0u32; N];
+        if self.is_leaf(b) {
+            kids[0] = b;
+            return (kids, 1);
+        }
+        let bin = &self.bins[b as usize];
+        (kids[0], kids[1]) = (bin.a, bin.b);
+        let mut k = 2;
+        while k < N {
+            let open = (0..k)
+                .filter(|&i| !self.is_leaf(kids[i]))
+                .max_by(|&i, &j| self.bins[kids[i] as usize].area.total_cmp(&self.bins[kids[j] as usize].area));
+            let Some(i) = open else { break };
+            let opened = self.bins[kids[i] as usize];
+            kids[i] = opened.a;
+            kids[k] = opened.b;
+            k += 1;
+        }
+        (kids, k)
+    }
+
+    /// Appends the primitives of leaf bin `b` to `out`, starting at an aligned position;
+    /// returns where they start.
+    fn emit_leaf(&self, b: u32, out: &mut Vec<u32>, stack: &mut Vec<u32>) -> u32 {
+        out.resize(out.len().next_multiple_of(self.align), PAD);
+        let start = out.len() as u32;
+        let bin = &self.bins[b as usize];
+        if bin.is_leaf() {
+            out.extend_from_slice(&self.src.prim_indices[bin.first as usize..(bin.first + bin.count) as usize]);
+        } else {
+            subtree_prims(self.bins, self.src, b, out, stack);
+        }
+        start
+    }
+
+    /// Collapses the subtree whose wide root is made from binary node `b`, at stack depth
+    /// `depth`: in parallel while it is large.
+    fn build<const N: usize>(&self, b: u32, depth: usize) -> WideBuilt<N> {
+        if self.bins[b as usize].prims <= PIECE_GRAIN || self.is_leaf(b) {
+            return WideBuilt::Piece(self.piece(b, depth));
+        }
+        let (kids, k) = self.slots::<N>(b);
+        let depth = depth + k - 1;
+        let mut node = WideNode::<N>::EMPTY;
+        let mut leaf_prims = Vec::new();
+        let mut interior = Vec::new();
+        for (slot, &kid) in kids[..k].iter().enumerate() {
+            node.set_child_bounds(slot, self.bins[kid as usize].bounds);
+            if self.is_leaf(kid) {
+                node.child[slot] = self.emit_leaf(kid, &mut leaf_prims, &mut Vec::new());
+                node.count[slot] = self.bins[kid as usize].prims;
+            } else {
+                interior.push((slot, kid));
+            }
+        }
+        use rayon::prelude::*;
+        let children: Vec<(usize, WideBuilt<N>)> =
+            interior.into_par_iter().map(|(slot, kid)| (slot, self.build(kid, depth))).collect();
+        let bound = children.iter().map(|(_, c)| c.bound()).max().unwrap_or(0).max(depth);
+        WideBuilt::Split { node, leaf_prims, children, bound }
+    }
+
+    /// Collapses the subtree at `b` sequentially, depth first (children of a node stored
+    /// consecutively).
+    fn piece<const N: usize>(&self, b: u32, depth: usize) -> WidePiece<N> {
+        let mut piece = WidePiece { nodes: vec![WideNode::<N>::EMPTY], prims: Vec::new(), bound: 0 };
+        let mut stack = Vec::new();
+        // (binary node whose children fill the wide node, wide node, stack depth above it)
+        let mut work = vec![(b, 0usize, depth)];
+        while let Some((b, w, depth)) = work.pop() {
+            let (kids, k) = self.slots::<N>(b);
+            let depth = depth + k - 1;
+            piece.bound = piece.bound.max(depth);
+            let mut node = WideNode::<N>::EMPTY;
+            for (slot, &kid) in kids[..k].iter().enumerate() {
+                node.set_child_bounds(slot, self.bins[kid as usize].bounds);
+                if self.is_leaf(kid) {
+                    node.child[slot] = self.emit_leaf(kid, &mut piece.prims, &mut stack);
+                    node.count[slot] = self.bins[kid as usize].prims;
+                } else {
+                    node.child[slot] = piece.nodes.len() as u32;
+                    work.push((kid, piece.nodes.len(), depth));
+                    piece.nodes.push(WideNode::<N>::EMPTY);
+                }
+            }
+            piece.nodes[w] = node;
+        }
+        piece.prims.resize(piece.prims.len().next_multiple_of(self.align), PAD);
+        piece
+    }
+}
+
+impl<const N: usize> WideBuilt<N> {
+    fn bound(&self) -> usize {
+        match self {
+            WideBuilt::Piece(p) => p.bound,
+            WideBuilt::Split { bound, .. } => *bound,
+        }
+    }
+}
+
+/// Where a piece goes in the output.
+struct Placement<'a, const N: usize> {
+    piece: &'a WidePiece<N>,
+    node_offset: usize,
+    prim_offset: usize,
+}
+
+/// Lays out the parallel top first (depth first), then every piece after it, and copies
+/// the pieces in parallel, relocating their indices.
+fn assemble<const N: usize>(root: &WideBuilt<N>, nodes: &mut Vec<WideNode<N>>, prims: &mut Vec<u32>, align: usize) {
+    let mut placements: Vec<Placement<N>> = Vec::new();
+    // The top: (built, node index it fills). Pieces get their offsets in a second pass.
+    let mut stack = vec![(root, None::<(usize, usize)>)];
+    nodes.clear();
+    prims.clear();
+    let mut pieces: Vec<(&WidePiece<N>, Option<(usize, usize)>)> = Vec::new();
+    while let Some((built, parent)) = stack.pop() {
+        match built {
+            WideBuilt::Piece(p) => pieces.push((p, parent)),
+            WideBuilt::Split { node, leaf_prims, children, .. } => {
+                let index = nodes.len();
+                if let Some((pn, slot)) = parent {
+                    nodes[pn].child[slot] = index as u32;
+                }
+                let mut node = *node;
+                let base = prims.len() as u32;
+                for s in 0..N {
+                    if node.count[s] > 0 {
+                        node.child[s] += base;
+                    }
+                }
+                prims.extend_from_slice(leaf_prims);
+                prims.resize(prims.len().next_multiple_of(align), PAD);
+                nodes.push(node);
+                for (slot, c) in children.iter().rev() {
+                    stack.push((c, Some((index, *slot))));
+                }
+            }
+        }
+    }
+    let (mut node_total, mut prim_total) = (nodes.len(), prims.len());
+    for (p, parent) in &pieces {
+        if let Some((pn, slot)) = *parent {
+            nodes[pn].child[slot] = node_total as u32;
+        }
+        placements.push(Placement { piece: p, node_offset: node_total, prim_offset: prim_total });
+        node_total += p.nodes.len();
+        prim_total += p.prims.len();
+    }
+    let top = nodes.len();
+    let top_prims = prims.len();
+    nodes.resize(node_total, WideNode::<N>::EMPTY);
+    prims.resize(prim_total, PAD);
+    let (mut node_rest, mut prim_rest) = (&mut nodes[top..], &mut prims[top_prims..]);
+    let mut jobs = Vec::with_capacity(placements.len());
+    for p in &placements {
+        let (n, tail) = std::mem::take(&mut node_rest).split_at_mut(p.piece.nodes.len());
+        let (q, prim_tail) = std::mem::take(&mut prim_rest).split_at_mut(p.piece.prims.len());
+        jobs.push((p, n, q));
+        node_rest = tail;
+        prim_rest = prim_tail;
+    }
+    use rayon::prelude::*;
+    jobs.into_par_iter().for_each(|(p, out_nodes, out_prims)| {
+        for (out, node) in out_nodes.iter_mut().zip(&p.piece.nodes) {
+            let mut node = *node;
+            for s in 0..N {
+                // Leaf slots count primitives; interior ones index a node other than the
+                // piece's root (0), which is what empty slots hold.
+                if node.count[s] > 0 {
+                    node.child[s] += p.prim_offset as u32;
+                } else if node.child[s] != 0 {
+                    node.child[s] += p.node_offset as u32;
+                }
+            }
+            *out = node;
+        }
+        out_prims.copy_from_slice(&p.piece.prims);
+    });
+}
+
 /// Collapses `src` into `N`-wide nodes; returns the nodes, the primitive indices in leaf
 /// order and the traversal stack bound (the largest number of entries the ordered traversal
 /// can have on its stack: along any root-to-node path, the sum of `children - 1`).
 /// `nodes` and `prims` are cleared and filled: passing the previous frame's arrays reuses
 /// their memory (fresh arrays of tens of MB cost more in page faults than the collapse).
+///
+/// Near the root, where subtrees hold more than `PIECE_GRAIN` primitives, each wide node's
+/// interior slots are collapsed as separate rayon tasks; below, a task collapses its subtree
+/// depth first into a piece of its own. The top is then laid out first and the pieces after
+/// it, in an order that does not depend on the thread count.
 pub(crate) fn collapse<const N: usize>(
     src: &Bvh,
     options: CollapseOptions,
@@ -230,84 +472,12 @@ pub(crate) fn collapse<const N: usize>(
     thread_local! {
         static SCRATCH: std::cell::Cell<Vec<Bin>> = const { std::cell::Cell::new(Vec::new()) };
     }
-    let mut bins = binary_view(src, SCRATCH.take());
-    // Small subtrees become leaves: mark them (count > 0) and remember where their
-    // primitives are, in a second reference array.
-    let mut merged: Vec<u32> = Vec::new();
-    let merged_base = src.prim_indices.len() as u32;
-    if options.merge_leaves > 1 {
-        let mut stack = vec![0u32];
-        while let Some(i) = stack.pop() {
-            let bin = bins[i as usize];
-            if bin.is_leaf() {
-                continue;
-            }
-            if bin.prims <= options.merge_leaves {
-                let first = merged.len() as u32;
-                subtree_prims(&bins, src, i, &mut merged);
-                bins[i as usize].first = merged_base + first;
-                bins[i as usize].count = bin.prims;
-            } else {
-                stack.push(bin.a);
-                stack.push(bin.b);
-            }
-        }
-    }
-    let refs = |first: u32, count: u32| -> &[u32] {
-        if first >= merged_base {
-            &merged[(first - merged_base) as usize..(first - merged_base + count) as usize]
-        } else {
-            &src.prim_indices[first as usize..(first + count) as usize]
-        }
-    };
-    nodes.reserve(src.nodes.len() / (N - 1) + 1);
-    nodes.push(WideNode::<N>::EMPTY);
-    prims.reserve(src.prim_indices.len());
-    let mut bound = 0;
-    // (binary node whose children fill the wide node, wide node, stack depth above it)
-    let mut work = vec![(0u32, 0usize, 0usize)];
-    while let Some((b, w, depth)) = work.pop() {
-        let mut kids = [0u32; N];
-        let mut k;
-        let bin = &bins[b as usize];
-        if bin.is_leaf() {
-            // Only for a tree that is a single leaf: the root holds it in slot 0.
-            kids[0] = b;
-            k = 1;
-        } else {
-            kids[0] = bin.a;
-            kids[1] = bin.b;
-            k = 2;
-            while k < N {
-                let open = (0..k)
-                    .filter(|&i| !bins[kids[i] as usize].is_leaf())
-                    .max_by(|&i, &j| bins[kids[i] as usize].area.total_cmp(&bins[kids[j] as usize].area));
-                let Some(i) = open else { break };
-                let opened = bins[kids[i] as usize];
-                kids[i] = opened.a;
-                kids[k] = opened.b;
-                k += 1;
-            }
-        }
-        let depth = depth + k - 1;
-        bound = bound.max(depth);
-        let mut node = WideNode::<N>::EMPTY;
-        for (slot, &kid) in kids[..k].iter().enumerate() {
-            let kid_bin = &bins[kid as usize];
-            node.set_child_bounds(slot, kid_bin.bounds);
-            if kid_bin.is_leaf() {
-                prims.resize(prims.len().next_multiple_of(align), PAD);
-                node.child[slot] = prims.len() as u32;
-                node.count[slot] = kid_bin.count;
-                prims.extend_from_slice(refs(kid_bin.first, kid_bin.count));
-            } else {
-                node.child[slot] = nodes.len() as u32;
-                work.push((kid, nodes.len(), depth));
-                nodes.push(WideNode::<N>::EMPTY);
-            }
-        }
-        nodes[w] = node;
-    }
+    let bins = binary_view(src, SCRATCH.take());
+    let emit = Emit { bins: &bins, src, merge: options.merge_leaves.max(1), align };
+    let built = emit.build::<N>(0, 0);
+    assemble(&built, &mut nodes, &mut prims, align);
+    let bound = built.bound();
+    drop(built);
     SCRATCH.set(bins);
     (nodes, prims, bound)
 }
