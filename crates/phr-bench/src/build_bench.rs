@@ -1,5 +1,7 @@
-//! `phr bench-build`: one builder on one mesh: build time (the auxiliary LBVH and PHR shown
-//! apart), SAH cost with the constants (1, 1) and the thesis's (2, 1), PHR's `Σ |cut|`, and
+//! `phr bench-build`: one builder on one mesh: build time (the auxiliary tree and PHR shown
+//! apart; for PHR also the refit of the auxiliary tree, what a dynamic scene pays instead of
+//! its build), the time to make the tree renderable (the collapse to the renderer's 8-wide
+//! BVH and the packing of its triangles), SAH cost with the constants (1, 1) and the thesis's (2, 1), PHR's `Σ |cut|`, and
 //! closest-hit throughput of one fixed ray set per mesh.
 //!
 //! Build: median of `repeats` builds from the primitive boxes. Rays: the primary rays of a
@@ -9,6 +11,7 @@
 
 use crate::rays::RaySet;
 use crate::throughput::{mean_counts, throughput};
+use phr_bvh::phr::AuxTree;
 use phr_bvh::{sah_cost, Builder, Ray, SahConstants, TraversalStats};
 use phr_render::geometry::Geometry;
 use phr_render::output::write_atomically;
@@ -24,8 +27,12 @@ pub struct BuildRow {
     pub threads: usize,
     pub builder: String,
     pub aux_ms: f64,
+    /// Refit of the auxiliary tree (PHR builders only).
+    pub refit_ms: Option<f64>,
     pub build_ms: f64,
     pub total_ms: f64,
+    /// The collapse to the renderer's 8-wide BVH and the triangle packing.
+    pub wide_ms: f64,
     pub sah_11: f64,
     pub sah_21: f64,
     /// PHR's `Σ |cut|` (PHR builders only).
@@ -57,6 +64,16 @@ pub fn measure_builder(
     let ms = |d: Duration| d.as_secs_f64() * 1e3;
     let (aux_ms, build_ms, total_ms) = (ms(report.aux_time), ms(report.build_time), ms(report.total_time()));
     let build_cost = report.phr.map(|s| s.build_cost);
+    let refit_ms = matches!(builder, Builder::Phr(_)).then(|| {
+        let mut aux = AuxTree::build(&geometry.boxes);
+        median_ms(repeats, || {
+            let start = std::time::Instant::now();
+            aux.refit(&geometry.boxes);
+            start.elapsed()
+        })
+    });
+    // Into the previous build's memory, as a dynamic scene does every frame.
+    let wide_ms = median_ms(repeats, || geometry.set_bvh(report.bvh.clone()));
     geometry.set_bvh(report.bvh);
     let trace = |r: &Ray| geometry.intersect(r).is_some();
     let (primary_mrays, diffuse_mrays) = (throughput(&rays.primary, 3, trace), throughput(&rays.diffuse, 3, trace));
@@ -71,8 +88,10 @@ pub fn measure_builder(
         threads,
         builder: builder.to_string(),
         aux_ms,
+        refit_ms,
         build_ms,
         total_ms,
+        wide_ms,
         sah_11: sah_cost(geometry.bvh(), SahConstants::UNIT),
         sah_21: sah_cost(geometry.bvh(), SahConstants::THESIS),
         build_cost,
@@ -83,15 +102,25 @@ pub fn measure_builder(
     }
 }
 
+/// The median of `repeats` (at least 1) timings, in milliseconds.
+fn median_ms(repeats: usize, mut run: impl FnMut() -> Duration) -> f64 {
+    let mut times: Vec<Duration> = (0..repeats.max(1)).map(|_| run()).collect();
+    times.sort();
+    times[times.len() / 2].as_secs_f64() * 1e3
+}
+
 /// The columns: CSV name, console heading, console width.
-pub const COLUMNS: [(&str, &str, usize); 14] = [
+pub const COLUMNS: [(&str, &str, usize); 17] = [
     ("mesh", "mesh", 36),
     ("triangles", "tris", 8),
     ("threads", "thr", 3),
     ("builder", "builder", 12),
     ("aux_ms", "aux ms", 8),
+    ("refit_ms", "refit ms", 8),
     ("build_ms", "build ms", 9),
     ("total_ms", "total ms", 9),
+    ("wide_ms", "wide ms", 8),
+    ("renderable_ms", "ready ms", 9),
     ("sah_cost_1_1", "SAH11", 7),
     ("sah_cost_2_1", "SAH21", 7),
     ("build_cost", "Σ|cut|", 9),
@@ -103,15 +132,18 @@ pub const COLUMNS: [(&str, &str, usize); 14] = [
 
 impl BuildRow {
     /// The row's values, in [`COLUMNS`] order.
-    pub fn cells(&self) -> [String; 14] {
+    pub fn cells(&self) -> [String; 17] {
         [
             self.mesh.clone(),
             self.triangles.to_string(),
             self.threads.to_string(),
             self.builder.clone(),
             format!("{:.3}", self.aux_ms),
+            self.refit_ms.map_or(String::new(), |ms| format!("{ms:.3}")),
             format!("{:.3}", self.build_ms),
             format!("{:.3}", self.total_ms),
+            format!("{:.3}", self.wide_ms),
+            format!("{:.3}", self.total_ms + self.wide_ms),
             format!("{:.4}", self.sah_11),
             format!("{:.4}", self.sah_21),
             self.build_cost.map_or(String::new(), |c| c.to_string()),

@@ -32,6 +32,9 @@ fn bench_build_measures_every_builder_and_thread_count() {
         assert_eq!(csv.num(r, "aux_ms") > 0.0, builder.starts_with("phr"), "{builder}: an auxiliary LBVH only for PHR");
         let total = csv.num(r, "total_ms");
         assert!((total - csv.num(r, "aux_ms") - csv.num(r, "build_ms")).abs() < 0.01, "{builder}: total = aux + build");
+        assert_eq!(csv.opt(r, "refit_ms").is_some(), builder.starts_with("phr"), "{builder}: a refit only for PHR");
+        let (wide, ready) = (csv.num(r, "wide_ms"), csv.num(r, "renderable_ms"));
+        assert!(wide > 0.0 && (ready - total - wide).abs() < 0.01, "{builder}: renderable = total + wide");
         assert!(csv.num(r, "sah_cost_2_1") > csv.num(r, "sah_cost_1_1"), "{builder}: traversal counts twice");
         assert!(csv.num(r, "primary_mrays_per_s") > 0.0 && csv.num(r, "diffuse_mrays_per_s") > 0.0);
         assert!(csv.num(r, "diffuse_nodes_per_ray") >= 1.0);

@@ -227,7 +227,10 @@ impl Ctx<'_> {
             let first = piece.alloc_children(k);
             piece.set_interior(slot, bounds, first, k);
             let t = self.threshold(depth + 1);
-            for (i, &(a, b)) in ranges.as_slice().iter().enumerate() {
+            // Pushed last child first, so the first child is built next: the children of
+            // auxiliary nodes then come in the order the auxiliary tree stores them (first
+            // child's subtree right after its parent), and the walk reads memory forwards.
+            for (i, &(a, b)) in ranges.as_slice().iter().enumerate().rev() {
                 let child_start = pool.len();
                 for j in start + a as usize..start + b as usize {
                     let n = pool[j];
