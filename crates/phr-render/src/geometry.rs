@@ -115,7 +115,9 @@ impl Geometry {
     /// Recomputes the primitive boxes (after vertices moved).
     pub fn update_boxes(&mut self) {
         use rayon::prelude::*;
-        let mut boxes: Vec<Aabb> = self.triangles.par_iter().map(|&[a, b, c]| triangle_bounds(a, b, c)).collect();
+        // Into the previous frame's memory (a dynamic scene does this every frame).
+        let mut boxes = std::mem::take(&mut self.boxes);
+        self.triangles.par_iter().map(|&[a, b, c]| triangle_bounds(a, b, c)).collect_into_vec(&mut boxes);
         boxes.extend(self.spheres.iter().map(|s| s.sphere.bounds()));
         self.boxes = boxes;
     }
