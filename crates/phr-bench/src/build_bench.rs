@@ -114,7 +114,7 @@ pub const COLUMNS: [(&str, &str, usize); 17] = [
     ("mesh", "mesh", 36),
     ("triangles", "tris", 8),
     ("threads", "thr", 3),
-    ("builder", "builder", 12),
+    ("builder", "builder", 22),
     ("aux_ms", "aux ms", 8),
     ("refit_ms", "refit ms", 8),
     ("build_ms", "build ms", 9),
@@ -155,26 +155,45 @@ impl BuildRow {
     }
 }
 
-/// The rows as a console table (right-aligned columns of [`COLUMNS`]' widths).
-pub fn table(rows: &[BuildRow]) -> String {
+/// One row per thread count for native Embree's build of a mesh: build = total = ready to
+/// trace (its commit makes the BVH8 with triangle leaves); what it does not report is empty.
+pub fn embree_cells(mesh: &str, triangles: usize, embree: &crate::embree_build::EmbreeBuild) -> Vec<[String; 17]> {
+    embree
+        .median_ms
+        .iter()
+        .map(|&(threads, ms)| {
+            let ms = format!("{ms:.3}");
+            let mut cells: [String; 17] = Default::default();
+            cells[0] = mesh.to_string();
+            cells[1] = triangles.to_string();
+            cells[2] = threads.to_string();
+            cells[3] = embree.name.clone();
+            (cells[6], cells[7], cells[9]) = (ms.clone(), ms.clone(), ms);
+            cells
+        })
+        .collect()
+}
+
+/// The rows (cells in [`COLUMNS`] order) as a console table, right-aligned.
+pub fn table(rows: &[[String; 17]]) -> String {
     let line = |cells: &mut dyn Iterator<Item = String>| {
         let padded: Vec<String> = cells.zip(COLUMNS).map(|(c, (_, _, w))| format!("{c:>w$}")).collect();
         padded.join(" ") + "\n"
     };
     let mut out = line(&mut COLUMNS.iter().map(|c| c.1.to_string()));
     for r in rows {
-        out += &line(&mut r.cells().into_iter());
+        out += &line(&mut r.iter().cloned());
     }
     out
 }
 
-/// Writes the rows as CSV (all or nothing).
-pub fn write_csv(path: &Path, rows: &[BuildRow]) -> std::io::Result<()> {
+/// Writes the rows (cells in [`COLUMNS`] order) as CSV (all or nothing).
+pub fn write_csv(path: &Path, rows: &[[String; 17]]) -> std::io::Result<()> {
     write_atomically(path, |tmp| {
         let mut f = std::io::BufWriter::new(std::fs::File::create(tmp)?);
         writeln!(f, "{}", COLUMNS.map(|c| c.0).join(","))?;
         for r in rows {
-            writeln!(f, "{}", r.cells().join(","))?;
+            writeln!(f, "{}", r.join(","))?;
         }
         f.flush()
     })

@@ -19,6 +19,7 @@
 
 pub mod build_bench;
 pub mod cut_cost;
+pub mod embree_build;
 pub mod frame;
 pub mod frame_report;
 pub mod mitsuba;

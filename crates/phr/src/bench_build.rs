@@ -1,12 +1,13 @@
 //! `phr bench-build`: every builder on every mesh of the shared scenes, with 1 and 2 threads
 //! (or the lists given): build time (the auxiliary LBVH and PHR shown apart), SAH cost with the
 //! constants (1, 1) and the thesis's (2, 1), PHR's `Σ |cut|`, and closest-hit throughput of
-//! one fixed ray set per mesh, as a table and a CSV. What is measured and how:
-//! [`phr_bench::build_bench`].
+//! one fixed ray set per mesh, as a table and a CSV; native Embree's build next to them
+//! ([`phr_bench::embree_build`]). What is measured and how: [`phr_bench::build_bench`].
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use phr_bench::build_bench::{measure_builder, table, write_csv};
+use phr_bench::build_bench::{embree_cells, measure_builder, table, write_csv};
+use phr_bench::embree_build::measure_embree_build;
 use phr_bench::rays::RaySet;
 use phr_bench::suite::{open_mesh, select, shared_scenes_dir, SHARED_MESHES};
 use phr_bvh::Builder;
@@ -39,6 +40,10 @@ pub struct BenchBuildArgs {
     /// CSV output.
     #[arg(long, default_value = "bench-build.csv")]
     pub csv: PathBuf,
+    /// Skip the peer, native Embree (build quality medium, through bench/embree_build.py;
+    /// needs python3 with numpy and the embreex wheel's libembree4 or a system Embree).
+    #[arg(long)]
+    pub no_embree: bool,
 }
 
 pub fn run(args: &BenchBuildArgs) -> Result<()> {
@@ -51,6 +56,7 @@ pub fn run(args: &BenchBuildArgs) -> Result<()> {
     let meshes = select(SHARED_MESHES, &args.only);
     let progress = crate::progress::bar((meshes.len() * args.threads.len() * builders.len()) as u64);
     let mut rows = Vec::new();
+    let mut skipped = None;
     for name in meshes {
         let (mut geometry, scene) = open_mesh(&dir, name)?;
         let camera = Camera::new(&scene.framing_camera(), args.res, args.res);
@@ -60,13 +66,24 @@ pub fn run(args: &BenchBuildArgs) -> Result<()> {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
             for builder in &builders {
                 progress.set_message(format!("{name}, {builder}, {threads} thread(s)"));
-                rows.push(pool.install(|| measure_builder(name, &mut geometry, &rays, builder, args.repeats, threads)));
+                let row = pool.install(|| measure_builder(name, &mut geometry, &rays, builder, args.repeats, threads));
+                rows.push(row.cells());
                 progress.inc(1);
+            }
+        }
+        if !args.no_embree && skipped.is_none() {
+            progress.set_message(format!("{name}, native Embree"));
+            match measure_embree_build(name, &geometry.triangles, &args.threads, args.repeats) {
+                Ok(embree) => rows.extend(embree_cells(name, geometry.triangles.len(), &embree)),
+                Err(reason) => skipped = Some(reason),
             }
         }
     }
     progress.finish_and_clear();
     print!("{}", table(&rows));
+    if let Some(reason) = skipped {
+        println!("native Embree skipped: {reason}");
+    }
     write_csv(&args.csv, &rows).with_context(|| format!("writing {}", args.csv.display()))?;
     println!("wrote {}", args.csv.display());
     Ok(())
