@@ -1,3 +1,4 @@
+use phr_bvh::binned_sah::build_binned_sah;
 use phr_bvh::phr::{build_phr, AuxTree, PhrOptions};
 use phr_bvh::*;
 use std::time::Instant;
@@ -28,6 +29,12 @@ fn main() {
         })
     );
     println!("refit         {:8.2}", t(&mut || aux.refit(&boxes)));
+    if std::env::var("ONLY_BINNED").is_ok() {
+        for _ in 0..5 {
+            std::hint::black_box(build_binned_sah(&boxes, &Default::default()));
+        }
+        return;
+    }
     if std::env::var("ONLY_COLLAPSE").is_ok() {
         let bvh = build_phr(&aux, &PhrOptions::FAST).0;
         let mut w = WideBvh::<8>::from_bvh(&bvh);

@@ -164,3 +164,18 @@ fn builders_survive_a_million_identical_or_nested_triangles() {
         }
     }
 }
+
+#[test]
+fn large_builds_take_their_parallel_paths_and_stay_exact() {
+    // Above 65536 primitives the binned SAH bins in parallel and the builders split their
+    // tops into tasks; the adversarial meshes are too small to get there.
+    let mut rng = Rng::new(8);
+    let tris = random_soup(100_000, 1.0, &mut rng);
+    let boxes = triangle_boxes(&tris);
+    for builder in ["binned-sah", "phr-fast", "lbvh"].map(|s| s.parse::<Builder>().unwrap()) {
+        let bvh = builder.build(&boxes);
+        validate(&bvh, &boxes, builder.max_leaf_size()).unwrap_or_else(|e| panic!("{builder}: {e}"));
+        let rays = random_rays(bvh.root_bounds(), 200, &mut rng);
+        assert_matches_brute_force(&bvh, &tris, &rays, &format!("100k soup, {builder}"));
+    }
+}
