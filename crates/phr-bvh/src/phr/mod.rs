@@ -157,6 +157,8 @@ struct Scratch {
     split: SplitScratch,
     cut_stack: Vec<CutNode>,
     gather_stack: Vec<CutNode>,
+    /// The primitives of the leaf being made.
+    leaf_prims: Vec<u32>,
 }
 
 struct Ctx<'a> {
@@ -179,12 +181,13 @@ impl Ctx<'_> {
             return Built::Piece(piece);
         }
         let mut scratch = Scratch::default();
-        let (bounds, ranges) = self.partition(&mut cut, 0, depth, &mut scratch);
+        let mut ranges = Ranges::LEAF;
+        let bounds = self.partition(&mut cut, 0, depth, &mut scratch, &mut ranges);
         self.build_cost.fetch_add(scratch.build_cost, Ordering::Relaxed);
         if ranges.len == 0 {
             let mut piece = Piece::new();
-            let prims = self.gather(&cut, &mut scratch);
-            piece.set_leaf(0, bounds, prims);
+            self.gather(&cut, &mut scratch);
+            piece.set_leaf(0, bounds, scratch.leaf_prims.iter().copied());
             return Built::Piece(piece);
         }
         let t = self.threshold(depth + 1);
@@ -214,12 +217,13 @@ impl Ctx<'_> {
         let mut scratch = Scratch::default();
         let mut pool = cut;
         let mut tasks = vec![(0usize, pool.len(), depth, 0u32)];
+        let mut ranges = Ranges::LEAF;
         while let Some((start, end, depth, slot)) = tasks.pop() {
             pool.truncate(end);
-            let (bounds, ranges) = self.partition(&mut pool, start, depth, &mut scratch);
+            let bounds = self.partition(&mut pool, start, depth, &mut scratch, &mut ranges);
             if ranges.len == 0 {
-                let prims = self.gather(&pool[start..], &mut scratch);
-                piece.set_leaf(slot, bounds, prims);
+                self.gather(&pool[start..], &mut scratch);
+                piece.set_leaf(slot, bounds, scratch.leaf_prims.iter().copied());
                 pool.truncate(start);
                 continue;
             }
@@ -253,9 +257,18 @@ impl Ctx<'_> {
     }
 
     /// Decides leaf or children for the node at `depth` whose cut is `pool[start..]`, and
-    /// counts the cut into the build cost. Returns the node's box and its children as ranges
+    /// counts the cut into the build cost. Returns the node's box; its children go to `ranges`
+    /// (an out-parameter: returned by value, the 136-byte array cost a memcpy per node) as ranges
     /// of the (reordered) cut, relative to `start`.
-    fn partition(&self, pool: &mut Vec<CutNode>, start: usize, depth: u32, scratch: &mut Scratch) -> (Aabb, Ranges) {
+    fn partition(
+        &self,
+        pool: &mut Vec<CutNode>,
+        start: usize,
+        depth: u32,
+        scratch: &mut Scratch,
+        ranges: &mut Ranges,
+    ) -> Aabb {
+        ranges.len = 0;
         scratch.build_cost += (pool.len() - start) as u64;
         // A cut of one interior node is opened: a node with a single child would only add a
         // traversal step, and keeping it whole is the thesis code's giant-leaf defect.
@@ -266,15 +279,14 @@ impl Ctx<'_> {
         let cut = &mut pool[start..];
         let bounds = cut_bounds(cut);
         if cut.len() < 2 {
-            return (bounds, Ranges::LEAF);
+            return bounds;
         }
         let leaf = &self.options.leaf;
         let n = cut_prims(cut);
         let first = self.split(cut, depth, scratch);
         if !leaf.must_split(n) && leaf.prefers_leaf(n, bounds.surface_area(), first.area_count) {
-            return (bounds, Ranges::LEAF);
+            return bounds;
         }
-        let mut ranges = Ranges::LEAF;
         ranges.ranges[0] = (0, first.left_len as u32);
         ranges.ranges[1] = (first.left_len as u32, cut.len() as u32);
         ranges.len = 2;
@@ -302,15 +314,14 @@ impl Ctx<'_> {
                 done[i] = true;
             }
         }
-        (bounds, ranges)
+        bounds
     }
 
-    /// The primitives under the cut's nodes.
-    fn gather(&self, cut: &[CutNode], scratch: &mut Scratch) -> Vec<u32> {
-        let mut prims = Vec::with_capacity(cut_prims(cut) as usize);
+    /// The primitives under the cut's nodes, into `scratch.leaf_prims`.
+    fn gather(&self, cut: &[CutNode], scratch: &mut Scratch) {
+        scratch.leaf_prims.clear();
         for n in cut {
-            self.aux.gather_prims(n, &mut prims, &mut scratch.gather_stack);
+            self.aux.gather_prims(n, &mut scratch.leaf_prims, &mut scratch.gather_stack);
         }
-        prims
     }
 }
