@@ -83,13 +83,12 @@ impl AuxTree {
         }
         let pairs = sorted_morton_codes(boxes);
         let (codes, order): (Vec<u64>, Vec<u32>) = pairs.into_par_iter().unzip();
-        let mut tree = Self::topology(&codes, &order);
-        tree.refit(boxes);
-        tree
+        Self::build_sorted(&codes, &order, boxes)
     }
 
-    /// The tree's nodes and pairs, boxes left empty.
-    fn topology(codes: &[u64], order: &[u32]) -> Self {
+    /// The tree over the sorted codes and their primitives, boxes fitted: each task fits its
+    /// own subtree right after building it, while its pairs are still in the cache.
+    fn build_sorted(codes: &[u64], order: &[u32], boxes: &[Aabb]) -> Self {
         let n = codes.len();
         let mut pairs = vec![AuxPair::EMPTY; n];
         let mut tasks = Vec::new();
@@ -129,7 +128,11 @@ impl AuxTree {
             jobs.push((t, own));
             rest = tail;
         }
-        jobs.into_par_iter().for_each(|(t, own)| build_task(codes, order, t, own));
+        jobs.into_par_iter().with_max_len(1).for_each(|(t, own)| {
+            build_task(codes, order, t, own);
+            refit_backwards(own, t.first_pair, boxes);
+        });
+        refit_top(&mut pairs, top_pairs, boxes);
         Self { pairs, top_pairs, tasks }
     }
 
