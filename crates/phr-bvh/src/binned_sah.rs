@@ -3,11 +3,11 @@
 //! boundaries are evaluated. Much faster than the full sweep, slightly worse trees.
 //!
 //! Laid out as Embree's builders are: the primitives travel as 32-byte references (box and
-//! index in two SIMD vectors, [`PrimRef`]) that are binned and partitioned in place, so every
+//! index in two SIMD vectors, `PrimRef`) that are binned and partitioned in place, so every
 //! pass reads memory in order instead of through an index array; a node's box and centroid
 //! box are gathered while its parent partitions, not in a pass of their own; the three axes
 //! are binned at once, one SIMD vector per reference. Binning is parallel at the top levels,
-//! where nodes are large, and subtrees below [`PARALLEL_GRAIN`] are built by one task each.
+//! where nodes are large, and subtrees below `PARALLEL_GRAIN` are built by one task each.
 
 use crate::aabb::Aabb;
 use crate::node::Bvh;

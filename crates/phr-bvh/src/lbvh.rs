@@ -1,5 +1,5 @@
 //! The LBVH, "linear BVH" (Lauterbach et al. 2009; Karras 2012 for the radix-tree split;
-//! thesis section 4.1): the fast, lower-quality builder, and the auxiliary tree PHR refines.
+//! thesis section 4.1): the fast, lower-quality builder.
 //!
 //! 1. Morton codes of the primitive centroids, quantised to the centroid bounds (parallel).
 //! 2. A parallel radix sort of (code, primitive) pairs ([`crate::radix_sort`]).
@@ -13,8 +13,9 @@
 //! 4. Bounds bottom up, in parallel, with one atomic counter per node ([`crate::refit()`]), the
 //!    routine that also refits the tree when vertices move.
 //!
-//! With `max_leaf_size == 1` the result is the full radix tree (one primitive per leaf), the
-//! auxiliary hierarchy PHR starts from.
+//! With `max_leaf_size == 1` the result is the full radix tree (one primitive per leaf). PHR
+//! refines the same tree, built from the same sorted codes and splits ([`find_split`]) but laid
+//! out for its own use: [`crate::phr::AuxTree`].
 
 use crate::aabb::Aabb;
 use crate::morton::MortonQuantizer;

@@ -5,8 +5,9 @@
 //! increments the parent's counter: every child but the last to arrive stops there, the last
 //! (which then knows all children are final) writes the union and climbs on. Every node's box is thus
 //! written exactly once, by exactly one thread, with no lock. The LBVH builder uses it for its
-//! initial bounds, and dynamic scenes use it every frame after vertices move: the topology
-//! stays, only the boxes change.
+//! initial bounds, and it refits any of our trees after its primitives move: the topology
+//! stays, only the boxes change. (Dynamic scenes refit PHR's auxiliary tree, whose layout lets
+//! it do without atomics: [`crate::phr::AuxTree::refit`].)
 
 use crate::aabb::Aabb;
 use crate::node::{Bvh, Node, INTERIOR, NO_PARENT};
