@@ -109,6 +109,9 @@ fn median_ms(repeats: usize, mut run: impl FnMut() -> Duration) -> f64 {
     times[times.len() / 2].as_secs_f64() * 1e3
 }
 
+/// One row of the table: a value (or nothing) per column of [`COLUMNS`].
+pub type Cells = [String; COLUMNS.len()];
+
 /// The columns: CSV name, console heading, console width.
 pub const COLUMNS: [(&str, &str, usize); 17] = [
     ("mesh", "mesh", 36),
@@ -132,7 +135,7 @@ pub const COLUMNS: [(&str, &str, usize); 17] = [
 
 impl BuildRow {
     /// The row's values, in [`COLUMNS`] order.
-    pub fn cells(&self) -> [String; 17] {
+    pub fn cells(&self) -> Cells {
         [
             self.mesh.clone(),
             self.triangles.to_string(),
@@ -157,25 +160,28 @@ impl BuildRow {
 
 /// One row per thread count for native Embree's build of a mesh: build = total = ready to
 /// trace (its commit makes the BVH8 with triangle leaves); what it does not report is empty.
-pub fn embree_cells(mesh: &str, triangles: usize, embree: &crate::embree_build::EmbreeBuild) -> Vec<[String; 17]> {
+pub fn embree_cells(mesh: &str, triangles: usize, embree: &crate::embree_build::EmbreeBuild) -> Vec<Cells> {
     embree
         .median_ms
         .iter()
         .map(|&(threads, ms)| {
             let ms = format!("{ms:.3}");
-            let mut cells: [String; 17] = Default::default();
-            cells[0] = mesh.to_string();
-            cells[1] = triangles.to_string();
-            cells[2] = threads.to_string();
-            cells[3] = embree.name.clone();
-            (cells[6], cells[7], cells[9]) = (ms.clone(), ms.clone(), ms);
-            cells
+            let values = [
+                ("mesh", mesh.to_string()),
+                ("triangles", triangles.to_string()),
+                ("threads", threads.to_string()),
+                ("builder", embree.name.clone()),
+                ("build_ms", ms.clone()),
+                ("total_ms", ms.clone()),
+                ("renderable_ms", ms),
+            ];
+            COLUMNS.map(|(name, _, _)| values.iter().find(|v| v.0 == name).map_or(String::new(), |v| v.1.clone()))
         })
         .collect()
 }
 
 /// The rows (cells in [`COLUMNS`] order) as a console table, right-aligned.
-pub fn table(rows: &[[String; 17]]) -> String {
+pub fn table(rows: &[Cells]) -> String {
     let line = |cells: &mut dyn Iterator<Item = String>| {
         let padded: Vec<String> = cells.zip(COLUMNS).map(|(c, (_, _, w))| format!("{c:>w$}")).collect();
         padded.join(" ") + "\n"
@@ -188,7 +194,7 @@ pub fn table(rows: &[[String; 17]]) -> String {
 }
 
 /// Writes the rows (cells in [`COLUMNS`] order) as CSV (all or nothing).
-pub fn write_csv(path: &Path, rows: &[[String; 17]]) -> std::io::Result<()> {
+pub fn write_csv(path: &Path, rows: &[Cells]) -> std::io::Result<()> {
     write_atomically(path, |tmp| {
         let mut f = std::io::BufWriter::new(std::fs::File::create(tmp)?);
         writeln!(f, "{}", COLUMNS.map(|c| c.0).join(","))?;

@@ -155,13 +155,12 @@ impl Bin {
 struct Bins([[Bin; MAX_BINS]; 3]);
 
 impl Bins {
-    fn merge(mut self, o: &Bins) -> Self {
+    fn merge(&mut self, o: &Bins) {
         for (mine, theirs) in self.0.iter_mut().flatten().zip(o.0.iter().flatten()) {
             mine.lo = mine.lo.min(theirs.lo);
             mine.hi = mine.hi.max(theirs.hi);
             mine.count += theirs.count;
         }
-        self
     }
 }
 
@@ -215,7 +214,10 @@ impl Binner {
                     fill(chunk, &mut b);
                     b
                 })
-                .reduce(empty, |a, b| Box::new(a.merge(&b)));
+                .reduce(empty, |mut a, b| {
+                    a.merge(&b);
+                    a
+                });
             *bins = *merged;
         } else {
             fill(refs, bins);

@@ -3,7 +3,7 @@
 //! things done with it: opening nodes during PHR, and refitting it every frame of a dynamic
 //! scene.
 //!
-//! - **Siblings share a cache line.** The two children of a node are one [`AuxPair`] of
+//! - **Siblings share a cache line.** The two children of a node are one `AuxPair` of
 //!   64 bytes, aligned: opening a node reads one line. A node carries its primitive count,
 //!   which is all PHR needs besides the box (the thesis's auxiliary-node weight is
 //!   `2·prims − 1` in a full binary tree), so there is no second array to miss in.
@@ -48,7 +48,7 @@ impl AuxNode {
 /// Two sibling nodes in one cache line.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
-pub struct AuxPair(pub [AuxNode; 2]);
+struct AuxPair([AuxNode; 2]);
 
 impl AuxPair {
     const EMPTY: AuxPair = AuxPair([AuxNode::EMPTY; 2]);
@@ -121,18 +121,11 @@ impl AuxTree {
             let m = (t.end_prim - t.first_prim) as u32;
             *node_mut(&mut pairs, t.root) = AuxNode { bounds: Aabb::EMPTY, first: 2 * t.first_pair as u32, prims: m };
         }
-        let (_, mut rest) = pairs.split_at_mut(top_pairs);
-        let mut jobs = Vec::with_capacity(tasks.len());
-        for t in &tasks {
-            let (own, tail) = std::mem::take(&mut rest).split_at_mut(t.end_prim - t.first_prim - 1);
-            jobs.push((t, own));
-            rest = tail;
-        }
-        jobs.into_par_iter().with_max_len(1).for_each(|(t, own)| {
+        task_pairs(&mut pairs, top_pairs, &tasks).into_par_iter().with_max_len(1).for_each(|(t, own)| {
             build_task(codes, order, t, own);
-            refit_backwards(own, t.first_pair, boxes);
+            refit_backwards(own, t.first_pair, own.len(), boxes);
         });
-        refit_top(&mut pairs, top_pairs, boxes);
+        refit_backwards(&mut pairs, 0, top_pairs, boxes);
         Self { pairs, top_pairs, tasks }
     }
 
@@ -142,15 +135,11 @@ impl AuxTree {
         if self.pairs.is_empty() {
             return;
         }
-        let (_, mut rest) = self.pairs.split_at_mut(self.top_pairs);
-        let mut jobs = Vec::with_capacity(self.tasks.len());
-        for t in &self.tasks {
-            let (own, tail) = std::mem::take(&mut rest).split_at_mut(t.end_prim - t.first_prim - 1);
-            jobs.push((t.first_pair, own));
-            rest = tail;
-        }
-        jobs.into_par_iter().with_max_len(1).for_each(|(first_pair, own)| refit_backwards(own, first_pair, boxes));
-        refit_top(&mut self.pairs, self.top_pairs, boxes);
+        task_pairs(&mut self.pairs, self.top_pairs, &self.tasks)
+            .into_par_iter()
+            .with_max_len(1)
+            .for_each(|(t, own)| refit_backwards(own, t.first_pair, own.len(), boxes));
+        refit_backwards(&mut self.pairs, 0, self.top_pairs, boxes);
     }
 
     /// Number of nodes (`2n − 1` for `n` primitives).
@@ -161,12 +150,6 @@ impl AuxTree {
     /// Number of primitives.
     pub fn prim_count(&self) -> usize {
         self.pairs.len()
-    }
-
-    /// Node `id`.
-    #[inline(always)]
-    pub fn node(&self, id: u32) -> &AuxNode {
-        &self.pairs[(id >> 1) as usize].0[(id & 1) as usize]
     }
 
     /// The root (`None` for an empty tree).
@@ -248,39 +231,36 @@ fn build_task(codes: &[u64], order: &[u32], t: &Task, own: &mut [AuxPair]) {
     debug_assert_eq!(next, own.len());
 }
 
-/// Refits `own` (pairs `first_pair..`), whose interior nodes' children all lie in `own`
-/// after them.
-fn refit_backwards(own: &mut [AuxPair], first_pair: usize, boxes: &[Aabb]) {
-    for q in (0..own.len()).rev() {
-        for s in 0..2 {
-            let n = own[q].0[s];
-            let bounds = if n.is_leaf() {
-                boxes[n.first as usize]
-            } else {
-                let [a, b] = &own[(n.first >> 1) as usize - first_pair].0;
-                a.bounds.union(b.bounds)
-            };
-            own[q].0[s].bounds = bounds;
-        }
-    }
+/// Each task with the pairs it owns: the pairs after the top, in task order.
+fn task_pairs<'a>(pairs: &'a mut [AuxPair], top_pairs: usize, tasks: &'a [Task]) -> Vec<(&'a Task, &'a mut [AuxPair])> {
+    let mut rest = &mut pairs[top_pairs..];
+    tasks
+        .iter()
+        .map(|t| {
+            let (own, tail) = std::mem::take(&mut rest).split_at_mut(t.end_prim - t.first_prim - 1);
+            rest = tail;
+            (t, own)
+        })
+        .collect()
 }
 
-/// Refits the top pairs `[0, top_pairs)`: their children lie in the top after them or in
-/// the (already refit) task pairs.
-fn refit_top(pairs: &mut [AuxPair], top_pairs: usize, boxes: &[Aabb]) {
-    for q in (0..top_pairs).rev() {
+/// Refits the first `count` pairs of `pairs` (whose first element is pair `first_pair`),
+/// backwards: the children of their interior nodes lie in `pairs`, after them. A task refits
+/// the pairs it owns; the top (pairs `[0, top_pairs)`) is refit last, its children being in
+/// the top or in the tasks' pairs.
+fn refit_backwards(pairs: &mut [AuxPair], first_pair: usize, count: usize, boxes: &[Aabb]) {
+    for q in (0..count).rev() {
         for s in 0..2 {
             let n = pairs[q].0[s];
-            if q == 0 && s == 1 {
-                continue;
-            }
-            let bounds = if n.is_leaf() {
-                boxes[n.first as usize]
-            } else {
-                let [a, b] = &pairs[(n.first >> 1) as usize].0;
-                a.bounds.union(b.bounds)
+            pairs[q].0[s].bounds = match n.prims {
+                // The root pair's unused slot.
+                0 => continue,
+                1 => boxes[n.first as usize],
+                _ => {
+                    let [a, b] = &pairs[(n.first >> 1) as usize - first_pair].0;
+                    a.bounds.union(b.bounds)
+                }
             };
-            pairs[q].0[s].bounds = bounds;
         }
     }
 }

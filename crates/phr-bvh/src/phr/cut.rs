@@ -2,9 +2,9 @@
 //! after each split (thesis 5.2), both driven by the threshold `t(d) = S / 2^(α d + δ)`.
 //!
 //! A cut is a set of auxiliary nodes whose subtrees together hold a node's primitives; here it
-//! is a slice of [`CutNode`]s, which carry what the split needs (box, weight, primitive count)
-//! so the hot loops never chase indices into the auxiliary tree. Opening a node replaces it
-//! by its children. Large nodes are opened early, near the root, where their size would spoil
+//! is a slice of [`CutNode`]s, copies of the nodes, which carry what the split needs (box and
+//! primitive count) so the hot loops never chase indices into the auxiliary tree. Opening a
+//! node replaces it by its children. Large nodes are opened early, near the root, where their size would spoil
 //! the split decisions; small ones only when the recursion has come down to their scale,
 //! which is where PHR saves its time.
 
@@ -18,7 +18,7 @@ use std::collections::BinaryHeap;
 const PARALLEL_CUT_GRAIN: u32 = 1 << 14;
 
 /// One auxiliary node in a cut: a copy of the node itself (box, children or primitive, and
-/// primitive count), so the hot loops never chase indices into the auxiliary tree.
+/// primitive count).
 pub type CutNode = AuxNode;
 
 /// A key that tells the nodes of one tree apart (for deterministic tie-breaks): leaves have
@@ -28,20 +28,15 @@ pub fn node_key(n: &CutNode) -> (u32, u32) {
     (n.prims, n.first)
 }
 
-/// The auxiliary tree, as PHR opens it.
-#[derive(Clone, Copy)]
-pub struct AuxView<'a> {
-    pub tree: &'a AuxTree,
-}
-
-impl AuxView<'_> {
+/// Opening nodes of the auxiliary tree, as cuts do.
+impl AuxTree {
     /// Appends the children of `node` (an interior auxiliary node) to `out`.
     #[inline]
     pub fn push_children(&self, node: &CutNode, out: &mut Vec<CutNode>) {
-        let children = self.tree.children(node);
+        let children = self.children(node);
         // Most cut nodes are opened later: start loading their children now.
-        self.tree.prefetch_children(&children[0]);
-        self.tree.prefetch_children(&children[1]);
+        self.prefetch_children(&children[0]);
+        self.prefetch_children(&children[1]);
         // Two pushes, not a slice copy: the compiler made that a call to memmove.
         out.push(children[0]);
         out.push(children[1]);
@@ -89,8 +84,8 @@ pub fn threshold(scene_area: f32, alpha: f32, delta: f32, depth: u32) -> f32 {
 /// The initial cut: every auxiliary node whose area is below `t0` while its parent's is not,
 /// plus the leaves reached above it. Walked top-down in parallel. If that is more than
 /// `max_size` nodes, the largest nodes are opened first, until the cap is reached.
-pub fn initial_cut(aux: &AuxView, t0: f32, max_size: Option<usize>) -> Vec<CutNode> {
-    let Some(&root) = aux.tree.root() else { return Vec::new() };
+pub fn initial_cut(aux: &AuxTree, t0: f32, max_size: Option<usize>) -> Vec<CutNode> {
+    let Some(&root) = aux.root() else { return Vec::new() };
     let cut = collect_below(aux, root, t0);
     match max_size {
         Some(cap) if cut.len() > cap => capped_cut(aux, t0, cap),
@@ -98,7 +93,7 @@ pub fn initial_cut(aux: &AuxView, t0: f32, max_size: Option<usize>) -> Vec<CutNo
     }
 }
 
-fn collect_below(aux: &AuxView, node: CutNode, t: f32) -> Vec<CutNode> {
+fn collect_below(aux: &AuxTree, node: CutNode, t: f32) -> Vec<CutNode> {
     if node.is_leaf() || node.bounds.surface_area() < t {
         return vec![node];
     }
@@ -113,7 +108,7 @@ fn collect_below(aux: &AuxView, node: CutNode, t: f32) -> Vec<CutNode> {
 }
 
 /// Opens the largest nodes first while they are above `t0` and the cut stays within `cap`.
-fn capped_cut(aux: &AuxView, t0: f32, cap: usize) -> Vec<CutNode> {
+fn capped_cut(aux: &AuxTree, t0: f32, cap: usize) -> Vec<CutNode> {
     struct ByArea(f32, CutNode);
     impl PartialEq for ByArea {
         fn eq(&self, o: &Self) -> bool {
@@ -131,7 +126,7 @@ fn capped_cut(aux: &AuxView, t0: f32, cap: usize) -> Vec<CutNode> {
             self.0.total_cmp(&o.0).then(node_key(&o.1).cmp(&node_key(&self.1)))
         }
     }
-    let Some(&root) = aux.tree.root() else { return Vec::new() };
+    let Some(&root) = aux.root() else { return Vec::new() };
     let mut heap = BinaryHeap::from([ByArea(root.bounds.surface_area(), root)]);
     let mut done = Vec::new();
     let mut children = Vec::new();

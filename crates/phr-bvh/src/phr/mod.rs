@@ -5,7 +5,7 @@
 //! The root's cut is the auxiliary tree's nodes at the scale of `t(0) = S / 2^δ`
 //! ([`cut::initial_cut`]). Each node splits its cut with a full-sweep SAH over the cut's nodes
 //! ([`split::best_split`]), then refines each half: nodes with area at or above
-//! `t(d) = S / 2^(α d + δ)` are replaced by their children ([`cut::AuxView::refine_into`]). Larger α and δ
+//! `t(d) = S / 2^(α d + δ)` are replaced by their children ([`AuxTree::refine_into`]). Larger α and δ
 //! refine sooner, so the splits see more, smaller nodes: better trees, slower builds. The
 //! build cost `b = Σ |cut|` over all processed cuts is the thesis's proxy for build time.
 //!
@@ -26,7 +26,7 @@ use crate::node::{Bvh, MAX_BRANCHING};
 use crate::sah::{LeafPolicy, MEDIAN_SPLIT_DEPTH};
 use crate::topdown::{assemble, Built, Piece};
 pub use aux_tree::AuxTree;
-use cut::{cut_bounds, cut_prims, AuxView, CutNode};
+use cut::{cut_bounds, cut_prims, CutNode};
 use rayon::prelude::*;
 use split::{best_split, median_split, CutSplit, SplitScratch};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -124,13 +124,11 @@ pub fn build_phr(aux: &AuxTree, options: &PhrOptions) -> (Bvh, PhrStats) {
         return (Bvh::default(), PhrStats::default());
     };
     let options = PhrOptions { branching: options.branching.clamp(2, MAX_BRANCHING as u32), ..*options };
-    let view = AuxView { tree: aux };
     let scene_area = root.bounds.surface_area();
     let thresholds =
         (0..THRESHOLD_TABLE).map(|d| cut::threshold(scene_area, options.alpha, options.delta, d)).collect();
-    let ctx = Ctx { aux: view, options, scene_area, thresholds, build_cost: AtomicU64::new(0) };
-    let t0 = cut::threshold(scene_area, options.alpha, options.delta, 0);
-    let root_cut = cut::initial_cut(&view, t0, options.max_initial_cut);
+    let ctx = Ctx { aux, options, scene_area, thresholds, build_cost: AtomicU64::new(0) };
+    let root_cut = cut::initial_cut(aux, ctx.threshold(0), options.max_initial_cut);
     let initial_cut = root_cut.len();
     let built = ctx.build(root_cut, 0);
     (assemble(built), PhrStats { build_cost: ctx.build_cost.into_inner(), initial_cut })
@@ -167,7 +165,7 @@ struct Scratch {
 const THRESHOLD_TABLE: u32 = 128;
 
 struct Ctx<'a> {
-    aux: AuxView<'a>,
+    aux: &'a AuxTree,
     options: PhrOptions,
     scene_area: f32,
     /// `t(d)` for `d < THRESHOLD_TABLE`.

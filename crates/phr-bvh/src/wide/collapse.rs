@@ -327,6 +327,28 @@ impl Emit<'_> {
         start
     }
 
+    /// The wide node over the slots `kids`: every slot's box, leaves emitted into `prims`,
+    /// and for each interior slot the child index that `interior(slot, kid)` returns.
+    fn node<const N: usize>(
+        &self,
+        kids: &[u32],
+        prims: &mut Vec<u32>,
+        stack: &mut Vec<u32>,
+        mut interior: impl FnMut(usize, u32) -> u32,
+    ) -> WideNode<N> {
+        let mut node = WideNode::<N>::EMPTY;
+        for (slot, &kid) in kids.iter().enumerate() {
+            node.set_child_bounds(slot, self.bins[kid as usize].bounds);
+            if self.is_leaf(kid) {
+                node.child[slot] = self.emit_leaf(kid, prims, stack);
+                node.count[slot] = self.bins[kid as usize].prims;
+            } else {
+                node.child[slot] = interior(slot, kid);
+            }
+        }
+        node
+    }
+
     /// Collapses the subtree whose wide root is made from binary node `b`, at stack depth
     /// `depth`: in parallel while it is large.
     fn build<const N: usize>(&self, b: u32, depth: usize) -> WideBuilt<N> {
@@ -335,18 +357,11 @@ impl Emit<'_> {
         }
         let (kids, k) = self.slots::<N>(b);
         let depth = depth + k - 1;
-        let mut node = WideNode::<N>::EMPTY;
-        let mut leaf_prims = Vec::new();
-        let mut interior = Vec::new();
-        for (slot, &kid) in kids[..k].iter().enumerate() {
-            node.set_child_bounds(slot, self.bins[kid as usize].bounds);
-            if self.is_leaf(kid) {
-                node.child[slot] = self.emit_leaf(kid, &mut leaf_prims, &mut Vec::new());
-                node.count[slot] = self.bins[kid as usize].prims;
-            } else {
-                interior.push((slot, kid));
-            }
-        }
+        let (mut leaf_prims, mut interior) = (Vec::new(), Vec::new());
+        let node = self.node(&kids[..k], &mut leaf_prims, &mut Vec::new(), |slot, kid| {
+            interior.push((slot, kid));
+            0
+        });
         use rayon::prelude::*;
         let children: Vec<(usize, WideBuilt<N>)> =
             interior.into_par_iter().map(|(slot, kid)| (slot, self.build(kid, depth))).collect();
@@ -365,20 +380,14 @@ impl Emit<'_> {
             let (kids, k) = self.slots::<N>(b);
             let depth = depth + k - 1;
             piece.bound = piece.bound.max(depth);
-            let mut node = WideNode::<N>::EMPTY;
             let pending = work.len();
-            for (slot, &kid) in kids[..k].iter().enumerate() {
-                node.set_child_bounds(slot, self.bins[kid as usize].bounds);
-                if self.is_leaf(kid) {
-                    node.child[slot] = self.emit_leaf(kid, &mut piece.prims, &mut stack);
-                    node.count[slot] = self.bins[kid as usize].prims;
-                } else {
-                    self.prefetch_children(kid);
-                    node.child[slot] = piece.nodes.len() as u32;
-                    work.push((kid, piece.nodes.len(), depth));
-                    piece.nodes.push(WideNode::<N>::EMPTY);
-                }
-            }
+            let nodes = &mut piece.nodes;
+            let node = self.node(&kids[..k], &mut piece.prims, &mut stack, |_, kid| {
+                self.prefetch_children(kid);
+                work.push((kid, nodes.len(), depth));
+                nodes.push(WideNode::<N>::EMPTY);
+                (nodes.len() - 1) as u32
+            });
             // The first interior slot is collapsed next.
             work[pending..].reverse();
             piece.nodes[w] = node;
@@ -405,13 +414,10 @@ struct Placement<'a, const N: usize> {
 }
 
 /// Lays out the parallel top first (depth first), then every piece after it, and copies
-/// the pieces in parallel, relocating their indices.
+/// the pieces in parallel, relocating their indices. `nodes` and `prims` start empty.
 fn assemble<const N: usize>(root: &WideBuilt<N>, nodes: &mut Vec<WideNode<N>>, prims: &mut Vec<u32>, align: usize) {
-    let mut placements: Vec<Placement<N>> = Vec::new();
     // The top: (built, node index it fills). Pieces get their offsets in a second pass.
     let mut stack = vec![(root, None::<(usize, usize)>)];
-    nodes.clear();
-    prims.clear();
     let mut pieces: Vec<(&WidePiece<N>, Option<(usize, usize)>)> = Vec::new();
     while let Some((built, parent)) = stack.pop() {
         match built {
@@ -438,6 +444,7 @@ fn assemble<const N: usize>(root: &WideBuilt<N>, nodes: &mut Vec<WideNode<N>>, p
         }
     }
     let (mut node_total, mut prim_total) = (nodes.len(), prims.len());
+    let mut placements = Vec::with_capacity(pieces.len());
     for (p, parent) in &pieces {
         if let Some((pn, slot)) = *parent {
             nodes[pn].child[slot] = node_total as u32;
