@@ -19,12 +19,15 @@
 //! Primitive tests for the common cases: [`triangle`] (Möller–Trumbore), [`sphere`].
 //!
 //! For tracing speed, [`wide`] collapses any tree into a 4- or 8-wide BVH traversed with SIMD
-//! box tests, with triangles packed in leaf order ([`wide::PackedTriangles`]).
+//! box tests, with triangles packed in leaf order ([`wide::PackedTriangles`]). For scenes whose
+//! objects move rigidly, [`instance`] places bottom-level trees with affine transforms under a
+//! small top-level tree rebuilt per frame.
 
 pub mod aabb;
 pub mod binned_sah;
 pub mod builder;
 pub mod dynamic;
+pub mod instance;
 pub mod lbvh;
 pub mod metrics;
 pub mod morton;

@@ -13,7 +13,7 @@
 
 use crate::geometry::Geometry;
 use crate::scene::Scene;
-use glam::{Mat4, Quat, Vec3};
+use glam::{Affine3A, Mat4, Quat, Vec3};
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -48,6 +48,27 @@ impl Motion {
     /// Applies `motions` in order.
     pub fn apply_all(motions: &[Motion], p: Vec3, t: f32) -> Vec3 {
         motions.iter().fold(p, |p, m| m.apply(p, t))
+    }
+
+    /// The motion at time `t` as one affine map of space, if it is one (rotations and
+    /// oscillations are; a wave deforms).
+    pub fn affine(&self, t: f32) -> Option<Affine3A> {
+        use std::f32::consts::TAU;
+        match *self {
+            Motion::Rotate { axis, pivot, degrees_per_second } => {
+                let q = Quat::from_axis_angle(axis, (degrees_per_second * t).to_radians());
+                Some(Affine3A::from_rotation_translation(q, pivot - q * pivot))
+            }
+            Motion::Oscillate { amplitude, period } => {
+                Some(Affine3A::from_translation(amplitude * (TAU * t / period).sin()))
+            }
+            Motion::Wave { .. } => None,
+        }
+    }
+
+    /// [`Motion::apply_all`] as one affine map, if every motion is one.
+    pub fn affine_all(motions: &[Motion], t: f32) -> Option<Affine3A> {
+        motions.iter().try_fold(Affine3A::IDENTITY, |m, motion| Some(motion.affine(t)? * m))
     }
 }
 
@@ -257,6 +278,14 @@ pub struct Animator {
     spheres: Vec<(usize, Vec3, Vec<Motion>)>,
 }
 
+/// An animated object's primitives (scene order, as in [`Geometry`]) and whether it moves
+/// rigidly: as a whole, by one affine map of its rest pose ([`Animator::rigid_transform`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MovingObject {
+    pub prims: Vec<u32>,
+    pub rigid: bool,
+}
+
 impl Animator {
     /// The animations of `scene`, whose geometry was flattened by [`Geometry::new`] (meshes'
     /// triangles in scene order).
@@ -301,26 +330,78 @@ impl Animator {
         self.meshes.iter().map(|m| m.triangles.len()).sum()
     }
 
+    /// The animated objects: the meshes, then the spheres (`triangle_count`: where the spheres'
+    /// primitive indices start). Object `k` of this list is the `k` of
+    /// [`Animator::rigid_transform`].
+    pub fn objects(&self, triangle_count: usize) -> Vec<MovingObject> {
+        let meshes = self.meshes.iter().map(|m| MovingObject {
+            prims: (m.triangles.start as u32..m.triangles.end as u32).collect(),
+            rigid: m.rigid_transform(0.0).is_some(),
+        });
+        let spheres =
+            self.spheres.iter().map(|(s, ..)| MovingObject { prims: vec![(triangle_count + s) as u32], rigid: true });
+        meshes.chain(spheres).collect()
+    }
+
+    /// Where rigid object `k` of [`Animator::objects`] is at time `t`: the map from its rest
+    /// pose. `None` for a deforming object.
+    pub fn rigid_transform(&self, k: usize, t: f32) -> Option<Affine3A> {
+        match self.meshes.get(k) {
+            Some(mesh) => mesh.rigid_transform(t),
+            None => {
+                // A sphere moves with its centre (its turning does not show).
+                let (_, centre, motions) = &self.spheres[k - self.meshes.len()];
+                Some(Affine3A::from_translation(Motion::apply_all(motions, *centre, t) - *centre))
+            }
+        }
+    }
+
+    /// Moves the vertices of the deforming meshes alone to time `t` (the rigid objects are
+    /// placed by [`Animator::rigid_transform`]). Boxes are not recomputed.
+    pub fn pose_deforming(&mut self, geometry: &mut Geometry, t: f32) {
+        for mesh in &mut self.meshes {
+            if mesh.rigid_transform(0.0).is_none() {
+                mesh.pose(geometry, t);
+            }
+        }
+    }
+
     /// Moves the geometry's triangles and spheres to time `t` (seconds) and recomputes the
     /// primitive boxes. The BVH is left alone: refit or rebuild it next.
     pub fn pose(&mut self, geometry: &mut Geometry, t: f32) {
         for mesh in &mut self.meshes {
-            match &mesh.animation {
-                Animation::Procedural(motions) => {
-                    mesh.posed.par_iter_mut().zip(&mesh.rest).for_each(|(p, &r)| *p = Motion::apply_all(motions, r, t));
-                }
-                Animation::Nodes(nodes) => nodes.pose(&mut mesh.posed, t),
-            }
-            let posed = &mesh.posed;
-            geometry.triangles[mesh.triangles.clone()]
-                .par_iter_mut()
-                .zip(&mesh.indices)
-                .for_each(|(tri, idx)| *tri = idx.map(|k| posed[k as usize]));
+            mesh.pose(geometry, t);
         }
         for (s, centre, motions) in &self.spheres {
             geometry.spheres[*s].sphere.center = Motion::apply_all(motions, *centre, t);
         }
         geometry.update_boxes();
+    }
+}
+
+impl PosedMesh {
+    /// Moves its triangles in `geometry` to time `t`.
+    fn pose(&mut self, geometry: &mut Geometry, t: f32) {
+        match &self.animation {
+            Animation::Procedural(motions) => {
+                self.posed.par_iter_mut().zip(&self.rest).for_each(|(p, &r)| *p = Motion::apply_all(motions, r, t));
+            }
+            Animation::Nodes(nodes) => nodes.pose(&mut self.posed, t),
+        }
+        let posed = &self.posed;
+        geometry.triangles[self.triangles.clone()]
+            .par_iter_mut()
+            .zip(&self.indices)
+            .for_each(|(tri, idx)| *tri = idx.map(|k| posed[k as usize]));
+    }
+
+    /// The map from its rest pose at time `t`, if it moves rigidly. (glTF node animations
+    /// count as deformations: their parts move differently.)
+    fn rigid_transform(&self, t: f32) -> Option<Affine3A> {
+        match &self.animation {
+            Animation::Procedural(motions) => Motion::affine_all(motions, t),
+            Animation::Nodes(_) => None,
+        }
     }
 }
 
@@ -341,6 +422,29 @@ mod tests {
         // A quarter wavelength along x is the crest at t = 0; the shape changes with x.
         assert!((wave.apply(Vec3::new(0.5, 0.0, 0.0), 0.0).y - 0.5).abs() < 1e-5);
         assert!(wave.apply(Vec3::ZERO, 0.0).y.abs() < 1e-5);
+    }
+
+    #[test]
+    fn rigid_motions_are_one_affine_map() {
+        let motions = [
+            Motion::Rotate {
+                axis: Vec3::new(0.3, 1.0, 0.2).normalize(),
+                pivot: Vec3::new(1.0, -2.0, 0.5),
+                degrees_per_second: 40.0,
+            },
+            Motion::Oscillate { amplitude: Vec3::new(0.0, 0.7, -0.2), period: 2.5 },
+            Motion::Rotate { axis: Vec3::X, pivot: Vec3::ZERO, degrees_per_second: -75.0 },
+        ];
+        for t in [0.0, 0.4, 1.7, 9.0] {
+            let m = Motion::affine_all(&motions, t).expect("rotations and oscillations are rigid");
+            for p in [Vec3::ZERO, Vec3::new(3.0, -1.0, 2.0), Vec3::new(-0.5, 4.0, 1.0)] {
+                let (got, want) = (m.transform_point3(p), Motion::apply_all(&motions, p, t));
+                assert!((got - want).length() < 1e-4, "t = {t}, p = {p}: {got} vs {want}");
+            }
+        }
+        let wave =
+            Motion::Wave { amplitude: 0.5, wavelength: 2.0, period: 1.0, direction: Vec3::X, displacement: Vec3::Y };
+        assert!(Motion::affine_all(&[motions[1].clone(), wave], 1.0).is_none());
     }
 
     #[test]

@@ -1,10 +1,21 @@
 //! The renderable geometry: every triangle and sphere of a scene in one primitive array, the
-//! BVH over it, and the closest-hit query the integrator calls.
+//! BVHs over it, and the closest-hit query the integrator calls.
 //!
 //! Primitives `0..triangles.len()` are triangles, the rest spheres. Closest-hit ties (two
 //! primitives at exactly the same distance, as at a shared edge) go to the lower primitive
 //! index, so the hit, and hence the image, does not depend on the tree's visit order: every
 //! builder gives the same image for the same seed.
+//!
+//! # One tree or several
+//!
+//! The thesis's layout is one tree over the whole scene ([`Geometry::set_bvh`]). For scenes
+//! whose objects move rigidly, [`Geometry::split`] cuts the primitives into **parts**, each with
+//! its own tree, placed by an [`Instance`] under a [`TopLevel`] tree ([`phr_bvh::instance`]):
+//! moving a rigid part is then a new transform ([`Geometry::place`]), not a rebuild, and a
+//! deforming part rebuilds its own tree alone ([`Geometry::set_part_bvh`]). The primitive
+//! arrays hold each part's primitives in its object space (the scene's rest pose for rigid
+//! parts; [`Geometry::world_triangle`] places them); hits, surface points and shadow queries
+//! are in world space either way.
 //!
 //! Rendering traces through a wide BVH ([`phr_bvh::wide`]) collapsed from the builder's tree
 //! whenever the tree is set ([`Geometry::build`], [`Geometry::set_bvh`]), with the triangles
@@ -14,7 +25,8 @@
 //! traversal, whose node counts are the thesis's traversal steps.
 
 use crate::scene::{Scene, SphereObject};
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
+use phr_bvh::instance::{Instance, TopLevel};
 use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
 use phr_bvh::{closest_hit_counted, Aabb, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
 
@@ -29,6 +41,8 @@ pub struct Hit {
     /// reads its vertices from the packed block the intersection test has just loaded,
     /// instead of from the scene-order array (a cache miss per hit).
     pub slot: u32,
+    /// The part whose tree found it (0 with one tree): its instance places the hit.
+    pub part: u32,
 }
 
 /// [`Hit::slot`] of hits found without the wide tree (spheres, the counting traversal).
@@ -63,15 +77,33 @@ impl GeometryMemory {
 }
 
 pub struct Geometry {
+    /// Scene order; in the object space of the part holding them (see the module documentation).
     pub triangles: Vec<[Vec3; 3]>,
     pub triangle_material: Vec<u32>,
     pub spheres: Vec<SphereObject>,
+    /// The primitives' boxes, in the same space as the primitives.
     pub boxes: Vec<Aabb>,
-    /// The builder's tree (binary or k-ary).
+    /// One part (the whole scene, in place) or the parts of [`Geometry::split`].
+    parts: Vec<Part>,
+    /// Over the parts' instances, after [`Geometry::split`]; `None`: `parts[0]` alone, in place.
+    top: Option<TopLevel>,
+    /// The part of each primitive (empty while there is one part).
+    prim_part: Vec<u32>,
+}
+
+/// Some of the primitives with their own trees, placed in the world by an instance.
+#[derive(Default)]
+struct Part {
+    /// The primitives, ascending; `None`: all of them.
+    prims: Option<Vec<u32>>,
+    /// The builder's tree (binary or k-ary), with scene-order primitive indices.
     bvh: Bvh,
     /// `bvh` collapsed to [`WIDTH`] children, and the triangles in its leaf order.
     wide: WideBvh<WIDTH>,
     packed: PackedTriangles,
+    /// Some of the primitives are spheres (the leaf test then checks each one's kind).
+    has_spheres: bool,
+    instance: Instance,
 }
 
 /// The width of the wide BVH the renderer traces (see the module documentation).
@@ -100,9 +132,9 @@ impl Geometry {
             triangle_material,
             spheres: scene.spheres.clone(),
             boxes: Vec::new(),
-            bvh: Bvh::default(),
-            wide: WideBvh::default(),
-            packed: PackedTriangles::default(),
+            parts: vec![Part::default()],
+            top: None,
+            prim_part: Vec::new(),
         };
         g.update_boxes();
         g
@@ -128,84 +160,171 @@ impl Geometry {
         self.set_bvh(bvh);
     }
 
-    /// Sets the BVH (built over [`Geometry::boxes`] of the current triangles) and derives the
-    /// wide tree and the packed triangles the queries use. Call it again after the triangles
-    /// move. Returns the time the collapse and the packing took: the one measurement of that
-    /// step, which the frame pipeline and the benchmarks report.
+    /// Sets one BVH over the whole scene (built over [`Geometry::boxes`] of the current
+    /// triangles; undoes [`Geometry::split`]) and derives the wide tree and the packed
+    /// triangles the queries use. Call it again after the triangles move. Returns the time the
+    /// collapse and the packing took: the one measurement of that step, which the frame
+    /// pipeline and the benchmarks report.
     pub fn set_bvh(&mut self, bvh: Bvh) -> std::time::Duration {
+        if self.parts.len() != 1 || self.parts[0].prims.is_some() {
+            // Keep the first part's memory for the whole scene.
+            self.parts.truncate(1);
+            self.parts[0].prims = None;
+            self.parts[0].instance = Instance::IDENTITY;
+            self.top = None;
+            self.prim_part = Vec::new();
+        }
+        self.set_part_bvh(0, bvh)
+    }
+
+    /// Cuts the primitives into parts, each with its own tree built by `build` over its boxes
+    /// (local indices), placed in the world as they are until [`Geometry::place`] moves them.
+    /// Part `k` is `groups[k]`; groups must be non-empty and must not share primitives;
+    /// primitives in none of them are left out.
+    pub fn split(&mut self, groups: Vec<Vec<u32>>, build: impl Fn(&[Aabb]) -> Bvh) {
+        assert!(!groups.is_empty() && groups.iter().all(|g| !g.is_empty()), "parts must not be empty");
+        self.prim_part = vec![u32::MAX; self.prim_count()];
+        self.parts = Vec::with_capacity(groups.len());
+        for (k, mut prims) in groups.into_iter().enumerate() {
+            prims.sort_unstable();
+            for &p in &prims {
+                assert_eq!(self.prim_part[p as usize], u32::MAX, "primitive {p} is in two parts");
+                self.prim_part[p as usize] = k as u32;
+            }
+            self.parts.push(Part { prims: Some(prims), ..Part::default() });
+            let boxes = self.part_boxes(k);
+            let bvh = build(&boxes);
+            self.set_part_bvh(k, bvh);
+        }
+        self.place(&[]);
+    }
+
+    /// Number of parts (1 unless [`Geometry::split`]).
+    pub fn part_count(&self) -> usize {
+        self.parts.len()
+    }
+
+    /// The boxes of part `k`'s primitives, in its order (what its tree is built over);
+    /// recomputed from the primitives, and written to [`Geometry::boxes`] too.
+    pub fn part_boxes(&mut self, k: usize) -> Vec<Aabb> {
+        use rayon::prelude::*;
+        let Some(prims) = &self.parts[k].prims else {
+            self.update_boxes();
+            return self.boxes.clone();
+        };
+        let (triangles, spheres) = (&self.triangles, &self.spheres);
+        let boxes: Vec<Aabb> = prims
+            .par_iter()
+            .map(|&p| match triangles.get(p as usize) {
+                Some(&[a, b, c]) => triangle_bounds(a, b, c),
+                None => spheres[p as usize - triangles.len()].sphere.bounds(),
+            })
+            .collect();
+        for (&p, b) in prims.iter().zip(&boxes) {
+            self.boxes[p as usize] = *b;
+        }
+        boxes
+    }
+
+    /// Sets part `k`'s tree, built over [`Geometry::part_boxes`] (its primitives numbered
+    /// from 0 in its order), and derives its wide tree and packed triangles. Returns the time
+    /// of the collapse and the packing. The top level is not updated: [`Geometry::place`].
+    pub fn set_part_bvh(&mut self, k: usize, mut bvh: Bvh) -> std::time::Duration {
         let start = std::time::Instant::now();
+        let part = &mut self.parts[k];
+        if let Some(prims) = &part.prims {
+            for p in &mut bvh.prim_indices {
+                *p = prims[*p as usize];
+            }
+        }
         // Into the previous frame's memory: in a dynamic scene this runs every frame.
-        self.wide.rebuild(&bvh);
-        self.packed.repack(&self.wide.prim_indices, &self.triangles);
+        part.wide.rebuild(&bvh);
+        part.packed.repack(&part.wide.prim_indices, &self.triangles);
+        let n_tris = self.triangles.len() as u32;
+        part.has_spheres = match &part.prims {
+            Some(prims) => prims.last().is_some_and(|&p| p >= n_tris),
+            None => !self.spheres.is_empty(),
+        };
         let elapsed = start.elapsed();
-        self.bvh = bvh;
+        part.bvh = bvh;
         elapsed
     }
 
+    /// Moves parts: `(k, to_world)` places part `k`'s object space in the world (parts not
+    /// named keep their place), then rebuilds the top level over every part. A transform
+    /// that cannot be inverted leaves its part where it was. Without [`Geometry::split`]
+    /// there is nothing to move.
+    pub fn place(&mut self, moves: &[(usize, Affine3A)]) {
+        if self.parts.len() == 1 && self.parts[0].prims.is_none() {
+            return;
+        }
+        for &(k, to_world) in moves {
+            if let Some(instance) = Instance::new(to_world) {
+                self.parts[k].instance = instance;
+            }
+        }
+        let instances = self.parts.iter().map(|p| p.instance).collect();
+        let boxes: Vec<Aabb> = self.parts.iter().map(Part::world_bounds).collect();
+        self.top.get_or_insert_with(TopLevel::default).rebuild(instances, &boxes);
+    }
+
     /// Bytes held, by part: the triangles (vertices and material indices), the primitive
-    /// boxes, the builder's tree (nodes, leaf order, parents), and what the renderer traces
-    /// (the wide tree and the packed triangles). Capacities, not lengths: what is allocated.
+    /// boxes, the builders' trees (nodes, leaf order, parents), and what the renderer traces
+    /// (the wide trees and the packed triangles). Capacities, not lengths: what is allocated.
     pub fn memory(&self) -> GeometryMemory {
         use std::mem::size_of;
         let bytes = |capacity: usize, size: usize| capacity * size;
+        let parts = |f: &dyn Fn(&Part) -> usize| self.parts.iter().map(f).sum::<usize>();
         GeometryMemory {
             triangles: bytes(self.triangles.capacity(), size_of::<[Vec3; 3]>())
                 + bytes(self.triangle_material.capacity(), size_of::<u32>()),
             boxes: bytes(self.boxes.capacity(), size_of::<Aabb>()),
-            tree: bytes(self.bvh.nodes.capacity(), size_of::<phr_bvh::Node>())
-                + bytes(self.bvh.prim_indices.capacity(), size_of::<u32>())
-                + bytes(self.bvh.parents.capacity(), size_of::<u32>()),
-            wide: bytes(self.wide.nodes.capacity(), size_of::<phr_bvh::wide::WideNode<WIDTH>>())
-                + bytes(self.wide.prim_indices.capacity(), size_of::<u32>())
-                + bytes(self.packed.blocks.capacity(), size_of::<phr_bvh::wide::triangles::TriangleBlock>()),
+            tree: parts(&|p| {
+                bytes(p.bvh.nodes.capacity(), size_of::<phr_bvh::Node>())
+                    + bytes(p.bvh.prim_indices.capacity(), size_of::<u32>())
+                    + bytes(p.bvh.parents.capacity(), size_of::<u32>())
+                    + bytes(p.prims.as_ref().map_or(0, Vec::capacity), size_of::<u32>())
+            }) + bytes(self.prim_part.capacity(), size_of::<u32>()),
+            wide: parts(&|p| {
+                bytes(p.wide.nodes.capacity(), size_of::<phr_bvh::wide::WideNode<WIDTH>>())
+                    + bytes(p.wide.prim_indices.capacity(), size_of::<u32>())
+                    + bytes(p.packed.blocks.capacity(), size_of::<phr_bvh::wide::triangles::TriangleBlock>())
+            }),
         }
     }
 
-    /// The builder's tree.
+    /// The builder's tree of the whole scene (after [`Geometry::split`]: of the first part).
     pub fn bvh(&self) -> &Bvh {
-        &self.bvh
+        &self.parts[0].bvh
     }
 
-    /// Takes the tree out (leaving an empty one: nothing is hit until the next
+    /// The builder's tree of part `k`, with scene-order primitive indices.
+    pub fn part_bvh(&self, k: usize) -> &Bvh {
+        &self.parts[k].bvh
+    }
+
+    /// Takes the whole scene's tree out (leaving an empty one: nothing is hit until the next
     /// [`Geometry::set_bvh`]).
     pub fn take_bvh(&mut self) -> Bvh {
-        self.wide = WideBvh::default();
-        self.packed = PackedTriangles::default();
-        std::mem::take(&mut self.bvh)
+        self.set_bvh(Bvh::default());
+        let part = &mut self.parts[0];
+        part.wide = WideBvh::default();
+        part.packed = PackedTriangles::default();
+        std::mem::take(&mut part.bvh)
     }
 
-    /// The wide tree the queries trace.
+    /// The wide tree the queries trace (after [`Geometry::split`]: the first part's).
     pub fn wide_bvh(&self) -> &WideBvh<WIDTH> {
-        &self.wide
+        &self.parts[0].wide
     }
 
-    #[inline(always)]
-    fn test_prim(&self, prim: u32, ray: &mut Ray, best: &mut Option<Hit>) -> bool {
-        // The primitive tests report hits at exactly `ray.tmax` too, for the tie rule.
-        let probe = &*ray;
-        let hit = if (prim as usize) < self.triangles.len() {
-            let [a, b, c] = self.triangles[prim as usize];
-            intersect_triangle(probe, a, b, c).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v, slot: NO_SLOT })
-        } else {
-            let s = &self.spheres[prim as usize - self.triangles.len()].sphere;
-            s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0, slot: NO_SLOT })
-        };
-        Self::keep_closest(hit, ray, best)
-    }
-
-    /// [`Geometry::test_prim`] for entry `i` of the wide tree's leaf order: triangles from
-    /// the packed copy (bit-identical hits), spheres as before.
-    #[inline(always)]
-    fn test_packed(&self, i: u32, ray: &mut Ray, best: &mut Option<Hit>) -> bool {
-        let prim = self.wide.prim_indices[i as usize];
-        let probe = &*ray;
-        let hit = if (prim as usize) < self.triangles.len() {
-            self.packed.intersect(i, probe).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v, slot: i })
-        } else {
-            let s = &self.spheres[prim as usize - self.triangles.len()].sphere;
-            s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0, slot: NO_SLOT })
-        };
-        Self::keep_closest(hit, ray, best)
+    /// Triangle `prim` where it is in the world.
+    pub fn world_triangle(&self, prim: usize) -> [Vec3; 3] {
+        let t = self.triangles[prim];
+        match self.prim_part.get(prim).and_then(|&k| self.parts.get(k as usize)) {
+            Some(part) if !part.instance.is_identity() => t.map(|v| part.instance.world_point(v)),
+            _ => t,
+        }
     }
 
     /// The tie rule: a hit closer than `ray.tmax`, or at exactly `ray.tmax` with a lower
@@ -225,25 +344,12 @@ impl Geometry {
     /// The closest hit along `ray` within its interval.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        if self.spheres.is_empty() {
-            // Triangles only: whole leaves at once (4-lane Möller–Trumbore, same bits), the
-            // leaf test compiled into the traversal loop.
-            return self.wide.closest_triangle_slot(&self.packed, ray).map(|h| Hit {
-                t: h.hit.t,
-                prim: h.prim,
-                u: h.hit.u,
-                v: h.hit.v,
-                slot: h.slot,
-            });
-        }
+        let Some(top) = &self.top else { return self.parts[0].intersect(self, 0, ray) };
         let mut r = *ray;
         let mut best = None;
-        self.wide.closest_hit_leaves(&mut r, |first, count, r| {
-            let mut hit = false;
-            for i in first..first + count {
-                hit |= self.test_packed(i, r, &mut best);
-            }
-            hit
+        top.closest_hit(&mut r, |k, object_ray| {
+            let hit = self.parts[k as usize].intersect(self, k, object_ray);
+            Self::keep_closest(hit, object_ray, &mut best)
         });
         best
     }
@@ -251,35 +357,69 @@ impl Geometry {
     /// Whether anything lies along `ray` within its interval (shadow rays): stops at the
     /// first hit.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        if self.spheres.is_empty() {
-            return self.wide.any_triangle(&self.packed, ray);
+        match &self.top {
+            None => self.parts[0].occluded(self, ray),
+            Some(top) => top.any_hit(ray, |k, object_ray| self.parts[k as usize].occluded(self, object_ray)),
         }
-        self.wide.any_hit_leaves(ray, |first, count, r| {
-            (first..first + count).any(|i| {
-                let prim = self.wide.prim_indices[i as usize] as usize;
-                if prim < self.triangles.len() {
-                    self.packed.intersect(i, r).is_some()
-                } else if prim - self.triangles.len() < self.spheres.len() {
-                    self.spheres[prim - self.triangles.len()].sphere.intersect(r).is_some()
-                } else {
-                    false
-                }
-            })
-        })
     }
 
-    /// [`Geometry::intersect`], also counting traversal steps.
+    /// [`Geometry::intersect`] through the builders' trees (the binary reference traversal),
+    /// counting their traversal steps (the top level's are not counted).
     pub fn intersect_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> Option<Hit> {
+        let mut search = |k: u32, r: &mut Ray| {
+            let mut best = None;
+            let part = &self.parts[k as usize];
+            closest_hit_counted(&part.bvh, r, |p, r| self.test_prim(p, k, r, &mut best), stats);
+            best
+        };
+        let Some(top) = &self.top else { return search(0, &mut ray.clone()) };
         let mut r = *ray;
         let mut best = None;
-        closest_hit_counted(&self.bvh, &mut r, |p, r| self.test_prim(p, r, &mut best), stats);
+        top.closest_hit(&mut r, |k, object_ray| {
+            let hit = search(k, &mut object_ray.clone());
+            Self::keep_closest(hit, object_ray, &mut best)
+        });
         best
     }
 
-    /// Position, normal and side of a hit.
+    #[inline(always)]
+    fn test_prim(&self, prim: u32, part: u32, ray: &mut Ray, best: &mut Option<Hit>) -> bool {
+        // The primitive tests report hits at exactly `ray.tmax` too, for the tie rule.
+        let probe = &*ray;
+        let hit = if (prim as usize) < self.triangles.len() {
+            let [a, b, c] = self.triangles[prim as usize];
+            intersect_triangle(probe, a, b, c).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v, slot: NO_SLOT, part })
+        } else {
+            let s = &self.spheres[prim as usize - self.triangles.len()].sphere;
+            s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0, slot: NO_SLOT, part })
+        };
+        Self::keep_closest(hit, ray, best)
+    }
+
+    /// Position, normal and side of a hit, in the world.
     pub fn surface_point(&self, ray: &Ray, hit: &Hit) -> SurfacePoint {
+        let part = &self.parts[hit.part as usize];
+        let instance = &part.instance;
+        let (position, normal, material, rel) = if instance.is_identity() {
+            self.local_surface(part, ray, hit)
+        } else {
+            let (p, n, material, rel) = self.local_surface(part, &instance.object_ray(ray), hit);
+            // A mirroring transform turns a triangle's e1 × e2 around; a sphere's outward
+            // normal stays outward.
+            let flip = instance.mirrors() && (hit.prim as usize) < self.triangles.len();
+            let n = instance.world_normal(if flip { -n } else { n });
+            (instance.world_point(p), n.normalize_or(Vec3::Z), material, rel)
+        };
+        let front = ray.dir.dot(normal) < 0.0;
+        let offset = rel * (1.0 + position.abs().max_element());
+        SurfacePoint { position, normal, front, material, offset }
+    }
+
+    /// Position, unit normal, material and relative offset of a hit in `part`'s object space
+    /// (`ray` in that space too).
+    fn local_surface(&self, part: &Part, ray: &Ray, hit: &Hit) -> (Vec3, Vec3, u32, f32) {
         let n_tris = self.triangles.len();
-        let (position, normal, material, rel) = if (hit.prim as usize) < n_tris {
+        if (hit.prim as usize) < n_tris {
             // `v0 + u e1 + v e2` and `e1 × e2`, from the packed copy when the hit says where
             // it is (the same values: the packed edges are computed as here).
             let [v0, e1, e2] = match hit.slot {
@@ -287,7 +427,7 @@ impl Geometry {
                     let [a, b, c] = self.triangles[hit.prim as usize];
                     [a, b - a, c - a]
                 }
-                slot => self.packed.get(slot),
+                slot => part.packed.get(slot),
             };
             let p = v0 + e1 * hit.u + e2 * hit.v;
             let n = e1.cross(e2).normalize_or(Vec3::Z);
@@ -300,10 +440,80 @@ impl Geometry {
             let p = ray.at(hit.t);
             let p = c + (p - c) * (r / (p - c).length());
             (p, s.sphere.normal(p).normalize_or(Vec3::Y), s.material, SPHERE_OFFSET)
+        }
+    }
+}
+
+impl Part {
+    /// A box around it in the world: the union of its wide root's children's boxes placed by
+    /// its instance (under a rotation, tighter than its whole object box placed).
+    fn world_bounds(&self) -> Aabb {
+        let Some(root) = self.wide.nodes.first() else { return Aabb::EMPTY };
+        (0..WIDTH)
+            .filter(|&i| root.is_used(i))
+            .fold(Aabb::EMPTY, |b, i| b.union(self.instance.world_box(root.child_bounds(i))))
+    }
+
+    /// [`Geometry::keep_closest`] over the leaf entry `i` of the wide tree: triangles from
+    /// the packed copy (bit-identical hits), spheres as they are.
+    #[inline(always)]
+    fn test_packed(&self, g: &Geometry, k: u32, i: u32, ray: &mut Ray, best: &mut Option<Hit>) -> bool {
+        let prim = self.wide.prim_indices[i as usize];
+        let probe = &*ray;
+        let hit = if (prim as usize) < g.triangles.len() {
+            self.packed.intersect(i, probe).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v, slot: i, part: k })
+        } else {
+            let s = &g.spheres[prim as usize - g.triangles.len()].sphere;
+            s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0, slot: NO_SLOT, part: k })
         };
-        let front = ray.dir.dot(normal) < 0.0;
-        let offset = rel * (1.0 + position.abs().max_element());
-        SurfacePoint { position, normal, front, material, offset }
+        Geometry::keep_closest(hit, ray, best)
+    }
+
+    /// The closest hit in this part (number `k`) along `ray`, in its object space.
+    #[inline(always)]
+    fn intersect(&self, g: &Geometry, k: u32, ray: &Ray) -> Option<Hit> {
+        if !self.has_spheres {
+            // Triangles only: whole leaves at once (4-lane Möller–Trumbore, same bits), the
+            // leaf test compiled into the traversal loop.
+            return self.wide.closest_triangle_slot(&self.packed, ray).map(|h| Hit {
+                t: h.hit.t,
+                prim: h.prim,
+                u: h.hit.u,
+                v: h.hit.v,
+                slot: h.slot,
+                part: k,
+            });
+        }
+        let mut r = *ray;
+        let mut best = None;
+        self.wide.closest_hit_leaves(&mut r, |first, count, r| {
+            let mut hit = false;
+            for i in first..first + count {
+                hit |= self.test_packed(g, k, i, r, &mut best);
+            }
+            hit
+        });
+        best
+    }
+
+    /// Whether anything in this part lies along `ray` (object space).
+    #[inline(always)]
+    fn occluded(&self, g: &Geometry, ray: &Ray) -> bool {
+        if !self.has_spheres {
+            return self.wide.any_triangle(&self.packed, ray);
+        }
+        self.wide.any_hit_leaves(ray, |first, count, r| {
+            (first..first + count).any(|i| {
+                let prim = self.wide.prim_indices[i as usize] as usize;
+                if prim < g.triangles.len() {
+                    self.packed.intersect(i, r).is_some()
+                } else if prim - g.triangles.len() < g.spheres.len() {
+                    g.spheres[prim - g.triangles.len()].sphere.intersect(r).is_some()
+                } else {
+                    false
+                }
+            })
+        })
     }
 }
 

@@ -49,12 +49,12 @@ impl LightSet {
     }
 
     /// Recomputes the selection weights after the triangles moved (animated lights change
-    /// area when they deform).
+    /// area when they deform or scale).
     pub fn refresh(&mut self, geometry: &Geometry, materials: &[Material]) {
         self.cdf.clear();
         let mut total = 0.0f32;
         for &i in &self.triangles {
-            let [a, b, c] = geometry.triangles[i as usize];
+            let [a, b, c] = geometry.world_triangle(i as usize);
             let emit = match materials[geometry.triangle_material[i as usize] as usize] {
                 Material::Emissive { emit, .. } => emit.max_element(),
                 _ => 0.0,
@@ -94,7 +94,7 @@ impl LightSet {
         }
         let weight = self.cdf[k] - if k > 0 { self.cdf[k - 1] } else { 0.0 };
         let prim = self.triangles[k] as usize;
-        let [a, b, c] = geometry.triangles[prim];
+        let [a, b, c] = geometry.world_triangle(prim);
         let cross = triangle_normal(a, b, c);
         let area = 0.5 * cross.length();
         // Uniform on the triangle: the square-root warp of two uniforms.

@@ -1,7 +1,16 @@
-//! The per-frame loop of the interactive viewer and of its headless mode, thesis section 5.3:
-//! pose the animated objects → refit the auxiliary LBVH → rebuild the render BVH with PHR →
-//! render one sample per pixel → accumulate. While nothing moves (no animation playing, no
-//! camera or setting change), frames add samples to the film; any change restarts it.
+//! The per-frame loop of the interactive viewer and of its headless mode: pose the animated
+//! objects → update the trees → render one sample per pixel → accumulate. While nothing moves
+//! (no animation playing, no camera or setting change), frames add samples to the film; any
+//! change restarts it.
+//!
+//! How the trees follow the motion is the [`PipelineKind`]:
+//! - [`PipelineKind::Thesis`], thesis section 5.3: one tree over the whole scene; every moving
+//!   frame moves the vertices, refits the auxiliary LBVH over all primitives, rebuilds the
+//!   render BVH with PHR and collapses it.
+//! - [`PipelineKind::TwoLevel`]: the static primitives, the deforming ones, and each rigidly
+//!   moving object get trees of their own ([`Geometry::split`]), built once; a moving frame
+//!   moves the rigid objects by their transforms and the top-level tree over them, and refits
+//!   and rebuilds the deforming part alone. Rigid motion then costs next to nothing.
 //!
 //! [`FramePipeline::step`] does one frame and reports the time of each stage, which is what
 //! the viewer's statistics panel and the headless CSV show.
@@ -51,10 +60,33 @@ impl ViewMode {
 /// Traversal steps shown as red in the heatmap mode.
 pub const HEATMAP_MAX_STEPS: f32 = 150.0;
 
+/// How the trees follow a moving scene (see the module documentation).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PipelineKind {
+    /// One tree over the whole scene, refitted and rebuilt with PHR when anything moves.
+    Thesis,
+    /// A tree per rigid object, placed by a transform under a top-level tree; the deforming
+    /// objects' tree alone is rebuilt.
+    #[default]
+    TwoLevel,
+}
+
+impl PipelineKind {
+    pub const ALL: [PipelineKind; 2] = [PipelineKind::Thesis, PipelineKind::TwoLevel];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PipelineKind::Thesis => "thesis",
+            PipelineKind::TwoLevel => "two-level",
+        }
+    }
+}
+
 /// Settings whose change restarts accumulation (and, for the builder, rebuilds the tree).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PipelineSettings {
     pub builder: Builder,
+    pub pipeline: PipelineKind,
     pub width: u32,
     pub height: u32,
     /// Maximum ray segments per path (camera ray included).
@@ -73,11 +105,13 @@ pub struct FrameReport {
     pub time: f32,
     /// Objects moved this frame (so the tree was refitted and rebuilt).
     pub moved: bool,
-    /// Moving vertices and recomputing primitive boxes.
+    /// Moving vertices and recomputing primitive boxes (two-level: of the deforming objects,
+    /// and the rigid objects' transforms).
     pub pose_ms: f64,
     /// Refitting the auxiliary LBVH (PHR builders; building it, the first time).
     pub refit_ms: f64,
-    /// Building the render BVH (0 when the tree was kept).
+    /// Building the render BVH (0 when the tree was kept; two-level: the deforming part's
+    /// tree and the top-level tree).
     pub build_ms: f64,
     /// Collapsing it to the wide BVH the renderer traces and packing the triangles in its
     /// leaf order ([`Geometry::set_bvh`]).
@@ -86,7 +120,8 @@ pub struct FrameReport {
     /// Everything above.
     pub frame_ms: f64,
     pub rays: u64,
-    /// SAH cost (unit constants) of the current render tree.
+    /// SAH cost (unit constants) of the current render tree (two-level: of the deforming
+    /// part's tree, 0 without one).
     pub sah_cost: f64,
     /// PHR's Σ|cut| of the last build (0 for other builders).
     pub build_cost: u64,
@@ -135,8 +170,11 @@ pub struct FramePipeline {
     scene: Scene,
     geometry: Geometry,
     animator: Animator,
-    /// PHR's auxiliary tree, kept across frames and refitted (PHR builders only).
+    /// PHR's auxiliary tree, kept across frames and refitted (PHR builders only): over the
+    /// whole scene, or over the deforming part of the two-level layout.
     dynamic: Option<DynamicBvh>,
+    /// The parts of the two-level layout, once split.
+    parts: Option<Parts>,
     /// The emissive triangles, when explicit light sampling is on.
     lights: Option<LightSet>,
     settings: PipelineSettings,
@@ -155,16 +193,25 @@ pub struct FramePipeline {
     pub speed: f32,
 }
 
+/// Which part of the two-level layout holds what.
+struct Parts {
+    /// The part of the deforming objects' primitives, rebuilt when they move.
+    deforming: Option<usize>,
+    /// `(part, object)`: the part of each rigid object of [`Animator::objects`].
+    rigid: Vec<(usize, usize)>,
+}
+
 impl FramePipeline {
     pub fn new(scene: Scene, settings: PipelineSettings, camera: CameraDesc) -> Self {
-        let geometry = Geometry::new(&scene);
-        let animator = Animator::new(&scene);
+        let mut animator = Animator::new(&scene);
+        let geometry = posed_geometry(&scene, &mut animator, settings.pipeline, 0.0);
         let film = Film::new(settings.width, settings.height);
         Self {
             scene,
             geometry,
             animator,
             dynamic: None,
+            parts: None,
             lights: None,
             settings,
             camera,
@@ -220,9 +267,14 @@ impl FramePipeline {
         if settings == self.settings {
             return;
         }
-        if settings.builder != self.settings.builder {
+        if settings.pipeline != self.settings.pipeline {
+            self.geometry = posed_geometry(&self.scene, &mut self.animator, settings.pipeline, self.time);
+            self.lights = None;
+        }
+        if settings.builder != self.settings.builder || settings.pipeline != self.settings.pipeline {
             self.tree_dirty = true;
             self.dynamic = None;
+            self.parts = None;
         }
         if (settings.width, settings.height) != (self.settings.width, self.settings.height) {
             self.film = Film::new(settings.width.max(1), settings.height.max(1));
@@ -246,15 +298,21 @@ impl FramePipeline {
         let moved = self.playing && self.speed != 0.0 && self.animator.is_animated();
         if moved {
             self.time += dt * self.speed;
-            self.animator.pose(&mut self.geometry, self.time);
-            if let Some(lights) = &mut self.lights {
-                lights.refresh(&self.geometry, &self.scene.materials);
+            match self.settings.pipeline {
+                PipelineKind::Thesis => self.animator.pose(&mut self.geometry, self.time),
+                PipelineKind::TwoLevel => self.animator.pose_deforming(&mut self.geometry, self.time),
             }
             report.pose_ms = ms_since(start);
             self.restart();
         }
         if moved || self.tree_dirty {
-            self.rebuild(&mut report);
+            match self.settings.pipeline {
+                PipelineKind::Thesis => self.rebuild(&mut report),
+                PipelineKind::TwoLevel => self.update_parts(&mut report),
+            }
+            if let Some(lights) = &mut self.lights {
+                lights.refresh(&self.geometry, &self.scene.materials);
+            }
             self.restart();
         }
         if self.settings.explicit_lights && self.lights.is_none() {
@@ -302,6 +360,90 @@ impl FramePipeline {
         }
         self.sah = sah_cost(self.geometry.bvh(), SahConstants::UNIT);
         self.tree_dirty = false;
+    }
+
+    /// The two-level layout's update: the first time, splits the scene into a static part, a
+    /// deforming part and a part per rigid object, each built by the builder; then moves the
+    /// rigid parts to the current time and rebuilds the deforming part from its moved boxes.
+    fn update_parts(&mut self, report: &mut FrameReport) {
+        let builder = self.settings.builder;
+        if self.parts.is_none() {
+            let build_start = Instant::now();
+            let parts = self.split();
+            report.build_ms = ms_since(build_start);
+            self.parts = Some(parts);
+        }
+        let Some(parts) = &self.parts else { unreachable!("split above") };
+        if let Some(d) = parts.deforming {
+            // (Built once more on the first frame: the auxiliary tree starts here.)
+            let pose_start = Instant::now();
+            let boxes = self.geometry.part_boxes(d);
+            report.pose_ms += ms_since(pose_start);
+            let build_start = Instant::now();
+            let bvh = match builder {
+                Builder::Phr(options) => {
+                    let dynamic = self.dynamic.get_or_insert_with(|| DynamicBvh::new(&boxes, options));
+                    let created_ms = ms_since(build_start);
+                    let (bvh, timings) = dynamic.update(&boxes);
+                    report.refit_ms = created_ms + timings.refit.as_secs_f64() * 1e3;
+                    self.build_cost = timings.build_cost;
+                    bvh
+                }
+                _ => builder.build(&boxes),
+            };
+            report.build_ms += ms_since(build_start) - report.refit_ms;
+            report.wide_ms = self.geometry.set_part_bvh(d, bvh).as_secs_f64() * 1e3;
+            self.sah = sah_cost(self.geometry.part_bvh(d), SahConstants::UNIT);
+        }
+        let place_start = Instant::now();
+        let moves: Vec<_> = parts
+            .rigid
+            .iter()
+            .filter_map(|&(part, object)| Some((part, self.animator.rigid_transform(object, self.time)?)))
+            .collect();
+        self.geometry.place(&moves);
+        report.build_ms += ms_since(place_start);
+        self.tree_dirty = false;
+    }
+
+    /// Cuts the scene into the two-level layout's parts and builds their trees.
+    fn split(&mut self) -> Parts {
+        let objects = self.animator.objects(self.geometry.triangles.len());
+        let mut moving = vec![false; self.geometry.prim_count()];
+        let mut deforming = Vec::new();
+        let mut rigid = Vec::new();
+        for (k, object) in objects.iter().enumerate() {
+            for &p in &object.prims {
+                moving[p as usize] = true;
+            }
+            if object.rigid {
+                rigid.push(k);
+            } else {
+                deforming.extend_from_slice(&object.prims);
+            }
+        }
+        let still: Vec<u32> = (0..moving.len() as u32).filter(|&p| !moving[p as usize]).collect();
+        let mut groups = Vec::new();
+        let mut part = |prims: Vec<u32>| {
+            (!prims.is_empty()).then(|| {
+                groups.push(prims);
+                groups.len() - 1
+            })
+        };
+        part(still);
+        let deforming = part(deforming);
+        let rigid: Vec<(usize, usize)> =
+            rigid.into_iter().filter_map(|k| Some((part(objects[k].prims.clone())?, k))).collect();
+        if objects.is_empty() || groups.is_empty() {
+            // Nothing moves (or there is nothing): one tree, no top level to pass through.
+            self.geometry.build(|boxes| self.settings.builder.build(boxes));
+        } else {
+            let builder = self.settings.builder;
+            self.geometry.split(groups, |boxes| builder.build(boxes));
+        }
+        self.sah = 0.0;
+        self.build_cost = 0;
+        Parts { deforming, rigid }
     }
 
     /// One sample per pixel in the current view mode; returns the pixels and the rays traced.
@@ -360,6 +502,22 @@ impl FramePipeline {
         }
         out
     }
+}
+
+/// The scene's geometry at time `t` as `pipeline` traces it: everything moved (the thesis's
+/// one tree), or the deforming objects alone (the two-level layout places the others).
+fn posed_geometry(scene: &Scene, animator: &mut Animator, pipeline: PipelineKind, t: f32) -> Geometry {
+    let mut geometry = Geometry::new(scene);
+    if animator.is_animated() {
+        match pipeline {
+            PipelineKind::Thesis => animator.pose(&mut geometry, t),
+            PipelineKind::TwoLevel => {
+                animator.pose_deforming(&mut geometry, t);
+                geometry.update_boxes();
+            }
+        }
+    }
+    geometry
 }
 
 fn albedo(m: &Material) -> Vec3 {

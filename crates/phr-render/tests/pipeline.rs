@@ -9,7 +9,7 @@ use glam::Vec3;
 use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
 use phr_bvh::{validate, Builder, Ray};
 use phr_render::lights::LightSet;
-use phr_render::pipeline::{FramePipeline, PipelineSettings, ViewMode};
+use phr_render::pipeline::{FramePipeline, PipelineKind, PipelineSettings, ViewMode};
 use phr_render::render::Renderer;
 use phr_render::scene::json::parse_scene;
 use phr_render::scene::RenderSettings;
@@ -40,10 +40,21 @@ const SCENE: &str = r#"{
 const SIZE: u32 = 32;
 
 fn pipeline(builder: Builder, explicit_lights: bool) -> FramePipeline {
+    pipeline_of(PipelineKind::Thesis, builder, explicit_lights)
+}
+
+fn pipeline_of(kind: PipelineKind, builder: Builder, explicit_lights: bool) -> FramePipeline {
     let scene = parse_scene(SCENE, Path::new("moving_light.json")).unwrap();
     let camera = scene.view(None).unwrap();
-    let settings =
-        PipelineSettings { builder, width: SIZE, height: SIZE, max_depth: 4, mode: ViewMode::Colour, explicit_lights };
+    let settings = PipelineSettings {
+        builder,
+        pipeline: kind,
+        width: SIZE,
+        height: SIZE,
+        max_depth: 4,
+        mode: ViewMode::Colour,
+        explicit_lights,
+    };
     FramePipeline::new(scene, settings, camera)
 }
 
@@ -136,14 +147,14 @@ fn the_pose_depends_on_the_time_not_the_history() {
 /// sampling included: a stale film would ghost, stale lights would light from the old place.
 #[test]
 fn a_moving_frame_shows_only_the_new_pose_with_lights_where_they_are() {
-    for lights in [false, true] {
-        let mut p = pipeline(Builder::PHR_FAST, lights);
+    for (kind, lights) in PipelineKind::ALL.into_iter().flat_map(|k| [(k, false), (k, true)]) {
+        let mut p = pipeline_of(kind, Builder::PHR_FAST, lights);
         for frame in 0..3 {
             let report = p.step(0.25);
-            assert_eq!(report.samples, 1, "lights {lights}, frame {frame}: the film was not restarted");
+            assert_eq!(report.samples, 1, "{kind:?}, lights {lights}, frame {frame}: the film was not restarted");
             let expected = fresh_render(&p, report.frame as u32, lights);
             let bits = |v: &[Vec3]| v.iter().map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
-            assert!(bits(&p.image()) == bits(&expected), "lights {lights}, frame {frame}: image differs");
+            assert!(bits(&p.image()) == bits(&expected), "{kind:?}, lights {lights}, frame {frame}: image differs");
             assert!(expected.iter().any(|c| c.max_element() > 0.1), "lights {lights}: a dark image proves nothing");
         }
     }
@@ -151,7 +162,13 @@ fn a_moving_frame_shows_only_the_new_pose_with_lights_where_they_are() {
 
 #[test]
 fn a_paused_pipeline_keeps_its_tree_and_accumulates() {
-    let mut p = pipeline(Builder::PHR_FAST, true);
+    for kind in PipelineKind::ALL {
+        paused_pipeline_keeps_its_tree_and_accumulates(kind);
+    }
+}
+
+fn paused_pipeline_keeps_its_tree_and_accumulates(kind: PipelineKind) {
+    let mut p = pipeline_of(kind, Builder::PHR_FAST, true);
     p.step(0.25);
     let (nodes, triangles) = (p.geometry().bvh().nodes.len(), p.geometry().triangles.clone());
     p.playing = false;

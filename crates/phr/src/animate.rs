@@ -6,6 +6,7 @@
 //! --headless`) and, if asked, the frames as PNG.
 
 use crate::scene_arg::{open_scene, BUILTIN};
+use crate::view::PipelineArg;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use glam::Vec3;
@@ -56,6 +57,11 @@ pub struct AnimateArgs {
     /// Also write every frame as PNG.
     #[arg(long)]
     png: bool,
+    /// How trees follow the motion: `thesis` (the default here: one tree over the whole scene,
+    /// refitted and rebuilt with PHR every frame) or `two-level` (rigid objects move by their
+    /// transforms; only the deforming objects' tree is rebuilt).
+    #[arg(long, value_enum, default_value = "thesis")]
+    pipeline: PipelineArg,
 }
 
 pub fn run(args: &AnimateArgs) -> Result<()> {
@@ -71,6 +77,7 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
     }
     let settings = PipelineSettings {
         builder: args.builder,
+        pipeline: args.pipeline.into(),
         width: args.width,
         height: args.height,
         max_depth: scene.settings.max_depth.min(8),

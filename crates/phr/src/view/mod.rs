@@ -1,5 +1,5 @@
 //! `phr view`: the interactive viewer ([`window`]) and its headless twin ([`headless`]). Both
-//! drive the same [`FramePipeline`] (pose → refit → PHR rebuild → render → accumulate), so a
+//! drive the same [`FramePipeline`] (pose → update the trees → render → accumulate), so a
 //! scripted headless run measures what the window shows.
 
 mod camera_control;
@@ -10,7 +10,7 @@ use crate::scene_arg::{open_scene, BUILTIN};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use phr_bvh::Builder;
-use phr_render::pipeline::{FramePipeline, PipelineSettings, ViewMode};
+use phr_render::pipeline::{FramePipeline, PipelineKind, PipelineSettings, ViewMode};
 use phr_render::scene::RenderSettings;
 use std::path::PathBuf;
 
@@ -45,6 +45,12 @@ pub struct ViewArgs {
     /// Children per node for PHR builders (2 to 16).
     #[arg(long, default_value_t = 2)]
     branching: u32,
+    /// How trees follow a moving scene: `two-level` builds a tree per rigidly moving object
+    /// once and moves it by its transform under a small top-level tree, rebuilding only the
+    /// deforming objects' tree; `thesis` refits and rebuilds one tree over the whole scene
+    /// every moving frame (thesis section 5.3).
+    #[arg(long, value_enum, default_value = "two-level")]
+    pipeline: PipelineArg,
     /// Maximum path length (default: the scene's, at most 8).
     #[arg(long)]
     max_depth: Option<u32>,
@@ -68,6 +74,22 @@ pub struct ViewArgs {
 enum LightSampling {
     Explicit,
     Implicit,
+}
+
+/// [`PipelineKind`] on the command line (`phr view`, `phr animate`).
+#[derive(Clone, Copy, ValueEnum)]
+pub enum PipelineArg {
+    Thesis,
+    TwoLevel,
+}
+
+impl From<PipelineArg> for PipelineKind {
+    fn from(p: PipelineArg) -> Self {
+        match p {
+            PipelineArg::Thesis => PipelineKind::Thesis,
+            PipelineArg::TwoLevel => PipelineKind::TwoLevel,
+        }
+    }
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -128,6 +150,7 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
     size.check().map_err(anyhow::Error::msg)?;
     let settings = PipelineSettings {
         builder,
+        pipeline: args.pipeline.into(),
         width: args.width,
         height: args.height,
         max_depth,

@@ -20,7 +20,7 @@ use phr_bvh::phr::PhrOptions;
 use phr_bvh::Builder;
 use phr_render::camera::CameraDesc;
 use phr_render::output::write_image;
-use phr_render::pipeline::{FramePipeline, FrameReport, PipelineSettings, ViewMode};
+use phr_render::pipeline::{FramePipeline, FrameReport, PipelineKind, PipelineSettings, ViewMode};
 use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -455,6 +455,15 @@ impl ViewerApp {
             });
         }
         ui.add_enabled(self.choice.is_phr(), egui::Slider::new(&mut self.branching, 2..=16).text("branching"));
+        ui.horizontal(|ui| {
+            ui.label("moving objects:");
+            for kind in PipelineKind::ALL {
+                ui.radio_value(&mut self.controls.settings.pipeline, kind, kind.name()).on_hover_text(match kind {
+                    PipelineKind::Thesis => "one tree over the whole scene, refitted and rebuilt every moving frame",
+                    PipelineKind::TwoLevel => "rigid objects move by their transforms; only deforming ones are rebuilt",
+                });
+            }
+        });
     }
 
     /// Resolution, depth, light sampling, view mode, saving.

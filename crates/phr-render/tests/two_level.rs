@@ -1,0 +1,209 @@
+//! The two-level layout (a tree per rigidly moving object, placed by its transform under a
+//! top-level tree) against things it does not use: the thesis pipeline, which moves every
+//! vertex and builds one tree, and brute force over the placed triangles. Hits, surface
+//! points and light samples must agree, through rotations, non-uniform scales and mirrors.
+
+use glam::{Affine3A, Quat, Vec3};
+use phr_bvh::triangle::{intersect_triangle, triangle_normal};
+use phr_bvh::{Builder, Ray, TraversalStats};
+use phr_render::geometry::Geometry;
+use phr_render::lights::LightSet;
+use phr_render::pipeline::{FramePipeline, PipelineKind, PipelineSettings, ViewMode};
+use phr_render::sampler::Pcg32;
+use phr_render::scene::json::parse_scene;
+use std::path::Path;
+
+/// A static floor and sphere; a block that turns and bobs, a sphere that swings and a lamp
+/// that turns (rigid); a strip that waves (a deformation).
+const SCENE: &str = r#"{
+  "background": [0.05, 0.05, 0.05],
+  "camera": { "position": [0, 2, 6], "look_at": [0, 0.5, 0], "vfov": 50 },
+  "materials": {
+    "white": { "type": "lambertian", "albedo": 0.7 },
+    "lamp": { "type": "emissive", "emit": [8, 8, 8] }
+  },
+  "objects": [
+    { "type": "quad", "Q": [-4, 0, -4], "u": [8, 0, 0], "v": [0, 0, 8], "material": "white" },
+    { "type": "sphere", "center": [-2, 0.5, -1], "radius": 0.5, "material": "white" },
+    { "type": "triangles", "material": "white",
+      "vertices": [[0, 0.2, 0], [1, 0.2, 0], [0, 1.4, 0], [0, 0.2, 1], [1, 1.4, 1], [0.3, 0.9, -0.6]],
+      "faces": [[0, 1, 2], [0, 3, 1], [1, 3, 4], [2, 4, 3], [0, 2, 5], [1, 5, 2], [2, 5, 4]],
+      "animate": [ { "type": "rotate", "axis": [0.2, 1, 0.1], "pivot": [0.5, 0.5, 0.5], "degrees_per_second": 70 },
+                   { "type": "oscillate", "amplitude": [0, 0.3, 0.2], "period": 1.3 } ] },
+    { "type": "sphere", "center": [1.5, 1.2, -1], "radius": 0.4, "material": "white",
+      "animate": { "type": "oscillate", "amplitude": [-1.2, 0, 0.5], "period": 2 } },
+    { "type": "quad", "Q": [-0.5, 2.5, -0.5], "u": [1, 0, 0], "v": [0, 0, 1], "material": "lamp",
+      "animate": { "type": "rotate", "axis": [1, 0, 0], "pivot": [0, 2.5, 0], "degrees_per_second": 40 } },
+    { "type": "triangles", "material": "white",
+      "vertices": [[-3, 0.1, 2], [-1, 0.1, 2], [-3, 0.1, 3], [-1, 0.1, 3], [1, 0.1, 2], [1, 0.1, 3]],
+      "faces": [[0, 2, 1], [1, 2, 3], [1, 3, 4], [4, 3, 5]],
+      "animate": { "type": "wave", "amplitude": 0.3, "wavelength": 2.0, "period": 1.5, "direction": [1, 0, 0] } }
+  ]
+}"#;
+
+fn pipeline(kind: PipelineKind) -> FramePipeline {
+    let scene = parse_scene(SCENE, Path::new("two_level.json")).unwrap();
+    let camera = scene.view(None).unwrap();
+    let settings = PipelineSettings {
+        builder: Builder::PHR_FAST,
+        pipeline: kind,
+        width: 16,
+        height: 16,
+        max_depth: 3,
+        mode: ViewMode::Colour,
+        explicit_lights: true,
+    };
+    FramePipeline::new(scene, settings, camera)
+}
+
+/// Rays from all over the scene's box towards all over it.
+fn rays(n: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = Pcg32::for_pixel(seed, 0, 0);
+    let mut point = |scale: f32| {
+        Vec3::new(rng.next_f32() - 0.5, rng.next_f32() * 0.5, rng.next_f32() - 0.5) * Vec3::new(8.0, 6.0, 8.0) * scale
+    };
+    (0..n)
+        .map(|_| {
+            let o = point(1.2);
+            let target = point(0.8);
+            Ray::new(o, (target - o).normalize_or(Vec3::Y))
+        })
+        .collect()
+}
+
+/// Closest triangle hit over every triangle where it is in the world, lowest index on ties
+/// (the scene's spheres are handled by the callers).
+fn brute_force_triangles(g: &Geometry, ray: &Ray) -> Option<(f32, u32)> {
+    let mut best: Option<(f32, u32)> = None;
+    for i in 0..g.triangles.len() {
+        let [a, b, c] = g.world_triangle(i);
+        if let Some(h) = intersect_triangle(ray, a, b, c) {
+            if best.is_none_or(|(t, _)| h.t < t) {
+                best = Some((h.t, i as u32));
+            }
+        }
+    }
+    best
+}
+
+fn close(a: f32, b: f32) -> bool {
+    (a - b).abs() <= 1e-4 * (1.0 + a.abs().max(b.abs()))
+}
+
+#[test]
+fn two_level_frames_hit_what_the_thesis_pipeline_hits() {
+    let mut thesis = pipeline(PipelineKind::Thesis);
+    let mut two = pipeline(PipelineKind::TwoLevel);
+    for frame in 0..5 {
+        let (a, b) = (thesis.step(0.37), two.step(0.37));
+        assert!(a.moved && b.moved);
+        assert_eq!(thesis.time, two.time);
+        let (gt, g2) = (thesis.geometry(), two.geometry());
+        assert!(g2.part_count() >= 5, "static, deforming and three rigid parts: {}", g2.part_count());
+        let mut differ = 0;
+        let all = rays(2000, frame);
+        for (i, ray) in all.iter().enumerate() {
+            let (want, got) = (gt.intersect(ray), g2.intersect(ray));
+            match (want, got) {
+                (None, None) => {}
+                (Some(w), Some(h)) if w.prim == h.prim && close(w.t, h.t) => {
+                    let (sw, sh) = (gt.surface_point(ray, &w), g2.surface_point(ray, &h));
+                    assert!((sw.position - sh.position).length() < 1e-3, "frame {frame}, ray {i}: position");
+                    assert!(sw.normal.dot(sh.normal) > 0.9999, "frame {frame}, ray {i}: normal");
+                    assert_eq!(sw.front, sh.front, "frame {frame}, ray {i}: side");
+                    assert_eq!(sw.material, sh.material);
+                }
+                // Rays grazing an edge may fall on either side of it in the two layouts.
+                _ => differ += 1,
+            }
+        }
+        assert!(differ <= all.len() / 200, "frame {frame}: {differ} of {} rays differ", all.len());
+        // The heatmap's counting traversal finds the same hits.
+        for ray in &all[..200] {
+            let counted = g2.intersect_counted(ray, &mut TraversalStats::default()).map(|h| (h.t, h.prim));
+            assert_eq!(counted, g2.intersect(ray).map(|h| (h.t, h.prim)));
+        }
+        // Shadow queries agree with closest hits.
+        for ray in &all[..500] {
+            assert_eq!(g2.occluded(ray), g2.intersect(ray).is_some());
+        }
+    }
+}
+
+#[test]
+fn light_samples_lie_on_the_moved_lamp() {
+    let mut thesis = pipeline(PipelineKind::Thesis);
+    let mut two = pipeline(PipelineKind::TwoLevel);
+    for _ in 0..3 {
+        thesis.step(0.61);
+        two.step(0.61);
+        let materials = &thesis.scene().materials;
+        let (lt, l2) = (LightSet::new(thesis.geometry(), materials), LightSet::new(two.geometry(), materials));
+        assert_eq!(lt.len(), 2);
+        for seed in 0..50 {
+            let mut r1 = Pcg32::for_pixel(seed, 1, 2);
+            let mut r2 = r1.clone();
+            let (a, b) = (lt.sample(thesis.geometry(), &mut r1).unwrap(), l2.sample(two.geometry(), &mut r2).unwrap());
+            assert!((a.point - b.point).length() < 1e-4, "{} vs {}", a.point, b.point);
+            assert!(a.normal.dot(b.normal) > 0.9999);
+            assert!(close(a.pdf_area, b.pdf_area));
+        }
+    }
+}
+
+/// Parts placed by arbitrary invertible maps (non-uniform scales, shears, mirrors) hit what
+/// brute force over the placed triangles hits, with the placed triangles' normals.
+#[test]
+fn placed_parts_equal_brute_force() {
+    let scene = parse_scene(SCENE, Path::new("two_level.json")).unwrap();
+    let mut g = Geometry::new(&scene);
+    let n = g.triangles.len() as u32;
+    // Triangles in three parts, the two spheres in a fourth.
+    let groups = vec![(0..2).collect(), (2..9).collect(), (9..n).collect(), vec![n, n + 1]];
+    g.split(groups, |boxes| Builder::PHR_HQ.build(boxes));
+    assert_eq!(g.part_count(), 4);
+    let maps = [
+        Affine3A::from_scale_rotation_translation(Vec3::new(1.5, 0.5, 2.0), Quat::from_rotation_y(0.8), Vec3::X),
+        Affine3A::from_mat3_translation(
+            glam::Mat3::from_cols(Vec3::new(-1.0, 0.2, 0.0), Vec3::new(0.0, 1.0, 0.3), Vec3::new(0.1, 0.0, 0.9)),
+            Vec3::new(0.5, 0.2, -0.4),
+        ),
+        Affine3A::from_scale(Vec3::new(1.0, -1.0, 1.0)) * Affine3A::from_translation(Vec3::new(0.0, -1.0, 0.0)),
+    ];
+    let shift = Vec3::new(0.3, 0.4, -0.2);
+    g.place(&[(0, maps[0]), (1, maps[1]), (2, maps[2]), (3, Affine3A::from_translation(shift))]);
+    let spheres: Vec<_> =
+        g.spheres.iter().map(|s| phr_bvh::sphere::Sphere { center: s.sphere.center + shift, ..s.sphere }).collect();
+    let mut hits = 0;
+    for (i, ray) in rays(3000, 7).iter().enumerate() {
+        let mut want = brute_force_triangles(&g, ray);
+        for (k, s) in spheres.iter().enumerate() {
+            if let Some(t) = s.intersect(ray) {
+                if want.is_none_or(|(bt, _)| t < bt) {
+                    want = Some((t, n + k as u32));
+                }
+            }
+        }
+        let got = g.intersect(ray);
+        match (want, got) {
+            (None, None) => {}
+            (Some((t, prim)), Some(h)) => {
+                assert!(prim == h.prim && close(t, h.t), "ray {i}: want {t} on {prim}, got {} on {}", h.t, h.prim);
+                hits += 1;
+                if prim < n {
+                    let [a, b, c] = g.world_triangle(prim as usize);
+                    let normal = triangle_normal(a, b, c).normalize();
+                    let sp = g.surface_point(ray, &h);
+                    assert!(sp.normal.dot(normal) > 0.9999, "ray {i}: normal {} vs {normal}", sp.normal);
+                    assert!((sp.position - ray.at(h.t)).length() < 1e-3, "ray {i}: position");
+                }
+            }
+            _ => panic!("ray {i}: want {want:?}, got {:?}", got.map(|h| (h.t, h.prim))),
+        }
+    }
+    assert!(hits > 500, "too few hits to prove anything: {hits}");
+    // Back to one tree over everything, in place.
+    g.set_bvh(Builder::PHR_FAST.build(&g.boxes));
+    assert_eq!(g.part_count(), 1);
+    assert_eq!(g.world_triangle(3), g.triangles[3]);
+}
