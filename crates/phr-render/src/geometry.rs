@@ -85,11 +85,27 @@ pub struct Geometry {
     pub boxes: Vec<Aabb>,
     /// One part (the whole scene, in place) or the parts of [`Geometry::split`].
     parts: Vec<Part>,
-    /// Over the parts' instances, after [`Geometry::split`]; `None`: `parts[0]` alone, in place.
-    top: Option<TopLevel>,
+    /// How rays reach the parts, after [`Geometry::split`]; `None`: `parts[0]` alone, in place.
+    placement: Option<Placement>,
     /// The part of each primitive (empty while there is one part).
     prim_part: Vec<u32>,
 }
+
+/// Which parts a ray visits, and how.
+#[derive(Default)]
+struct Placement {
+    /// Parts in place (identity instances): searched first, with the world ray as it is.
+    in_place: Vec<u32>,
+    /// Parts moved by a transform; instance `i` of `top` is part `moved[i]`.
+    moved: Vec<u32>,
+    /// Over the moved parts, when there are more than [`DIRECT_MOVED`].
+    top: TopLevel,
+}
+
+/// Up to this many moved parts are searched one after the other without a top-level tree.
+/// Its traversal (a kernel call, a node test, ordering) cost about 10 % of the frame on
+/// scenes with one moving object, which the BLAS's own root test culls as well.
+const DIRECT_MOVED: usize = 2;
 
 /// Some of the primitives with their own trees, placed in the world by an instance.
 #[derive(Default)]
@@ -133,7 +149,7 @@ impl Geometry {
             spheres: scene.spheres.clone(),
             boxes: Vec::new(),
             parts: vec![Part::default()],
-            top: None,
+            placement: None,
             prim_part: Vec::new(),
         };
         g.update_boxes();
@@ -171,7 +187,7 @@ impl Geometry {
             self.parts.truncate(1);
             self.parts[0].prims = None;
             self.parts[0].instance = Instance::IDENTITY;
-            self.top = None;
+            self.placement = None;
             self.prim_part = Vec::new();
         }
         self.set_part_bvh(0, bvh)
@@ -251,7 +267,7 @@ impl Geometry {
     }
 
     /// Moves parts: `(k, to_world)` places part `k`'s object space in the world (parts not
-    /// named keep their place), then rebuilds the top level over every part. A transform
+    /// named keep their place), then rebuilds the top level over the moved parts. A transform
     /// that cannot be inverted leaves its part where it was. Without [`Geometry::split`]
     /// there is nothing to move.
     pub fn place(&mut self, moves: &[(usize, Affine3A)]) {
@@ -263,9 +279,18 @@ impl Geometry {
                 self.parts[k].instance = instance;
             }
         }
-        let instances = self.parts.iter().map(|p| p.instance).collect();
-        let boxes: Vec<Aabb> = self.parts.iter().map(Part::world_bounds).collect();
-        self.top.get_or_insert_with(TopLevel::default).rebuild(instances, &boxes);
+        let mut placement = self.placement.take().unwrap_or_default();
+        let parts = 0..self.parts.len() as u32;
+        let is_moved = |k: &u32| !self.parts[*k as usize].instance.is_identity();
+        placement.in_place = parts.clone().filter(|k| !is_moved(k)).collect();
+        placement.moved = parts.filter(is_moved).collect();
+        if placement.moved.len() > DIRECT_MOVED {
+            let moved = placement.moved.iter().map(|&k| &self.parts[k as usize]);
+            let instances = moved.clone().map(|p| p.instance).collect();
+            let boxes: Vec<Aabb> = moved.map(Part::world_bounds).collect();
+            placement.top.rebuild(instances, &boxes);
+        }
+        self.placement = Some(placement);
     }
 
     /// Bytes held, by part: the triangles (vertices and material indices), the primitive
@@ -341,13 +366,49 @@ impl Geometry {
         }
     }
 
+    /// Calls `search(k, ray)` for every part `k` the ray may hit, with the ray in the part's
+    /// object space and its `tmax` the closest hit so far: parts in place first, then the
+    /// moved ones. `search` shrinks `tmax` on a hit and returns true. `ANY`: stop at the first.
+    #[inline(always)]
+    fn search_parts<const ANY: bool>(&self, ray: &mut Ray, mut search: impl FnMut(u32, &mut Ray) -> bool) -> bool {
+        let Some(placement) = &self.placement else { return search(0, ray) };
+        let mut found = false;
+        for &k in &placement.in_place {
+            if search(k, ray) {
+                found = true;
+                if ANY {
+                    return true;
+                }
+            }
+        }
+        if placement.moved.len() <= DIRECT_MOVED {
+            for &k in &placement.moved {
+                let mut object_ray = self.parts[k as usize].instance.object_ray(ray);
+                if search(k, &mut object_ray) {
+                    ray.tmax = object_ray.tmax;
+                    found = true;
+                    if ANY {
+                        return true;
+                    }
+                }
+            }
+        } else if ANY {
+            found |= placement.top.any_hit(ray, |i, r| search(placement.moved[i as usize], &mut r.clone()));
+        } else {
+            found |= placement.top.closest_hit(ray, |i, r| search(placement.moved[i as usize], r));
+        }
+        found
+    }
+
     /// The closest hit along `ray` within its interval.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let Some(top) = &self.top else { return self.parts[0].intersect(self, 0, ray) };
+        if self.placement.is_none() {
+            return self.parts[0].intersect(self, 0, ray);
+        }
         let mut r = *ray;
         let mut best = None;
-        top.closest_hit(&mut r, |k, object_ray| {
+        self.search_parts::<false>(&mut r, |k, object_ray| {
             let hit = self.parts[k as usize].intersect(self, k, object_ray);
             Self::keep_closest(hit, object_ray, &mut best)
         });
@@ -357,27 +418,17 @@ impl Geometry {
     /// Whether anything lies along `ray` within its interval (shadow rays): stops at the
     /// first hit.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        match &self.top {
-            None => self.parts[0].occluded(self, ray),
-            Some(top) => top.any_hit(ray, |k, object_ray| self.parts[k as usize].occluded(self, object_ray)),
-        }
+        self.search_parts::<true>(&mut ray.clone(), |k, object_ray| self.parts[k as usize].occluded(self, object_ray))
     }
 
     /// [`Geometry::intersect`] through the builders' trees (the binary reference traversal),
     /// counting their traversal steps (the top level's are not counted).
     pub fn intersect_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> Option<Hit> {
-        let mut search = |k: u32, r: &mut Ray| {
-            let mut best = None;
-            let part = &self.parts[k as usize];
-            closest_hit_counted(&part.bvh, r, |p, r| self.test_prim(p, k, r, &mut best), stats);
-            best
-        };
-        let Some(top) = &self.top else { return search(0, &mut ray.clone()) };
         let mut r = *ray;
         let mut best = None;
-        top.closest_hit(&mut r, |k, object_ray| {
-            let hit = search(k, &mut object_ray.clone());
-            Self::keep_closest(hit, object_ray, &mut best)
+        self.search_parts::<false>(&mut r, |k, object_ray| {
+            let bvh = &self.parts[k as usize].bvh;
+            closest_hit_counted(bvh, object_ray, |p, r| self.test_prim(p, k, r, &mut best), stats)
         });
         best
     }

@@ -171,12 +171,30 @@ fn placed_parts_equal_brute_force() {
         Affine3A::from_scale(Vec3::new(1.0, -1.0, 1.0)) * Affine3A::from_translation(Vec3::new(0.0, -1.0, 0.0)),
     ];
     let shift = Vec3::new(0.3, 0.4, -0.2);
-    g.place(&[(0, maps[0]), (1, maps[1]), (2, maps[2]), (3, Affine3A::from_translation(shift))]);
+    let id = Affine3A::IDENTITY;
+    // All four parts moved (through the top-level tree), then two (searched directly).
+    let layouts = [
+        [maps[0], maps[1], maps[2], Affine3A::from_translation(shift)],
+        [id, maps[1], id, Affine3A::from_translation(shift)],
+    ];
+    for (layout, m) in layouts.iter().enumerate() {
+        g.place(&[(0, m[0]), (1, m[1]), (2, m[2]), (3, m[3])]);
+        check_placed(&g, n, shift, layout);
+    }
+    // Back to one tree over everything, in place.
+    g.set_bvh(Builder::PHR_FAST.build(&g.boxes));
+    assert_eq!(g.part_count(), 1);
+    assert_eq!(g.world_triangle(3), g.triangles[3]);
+}
+
+/// [`placed_parts_equal_brute_force`] for one placement: the spheres (primitives `n`, `n + 1`)
+/// moved by `shift`.
+fn check_placed(g: &Geometry, n: u32, shift: Vec3, layout: usize) {
     let spheres: Vec<_> =
         g.spheres.iter().map(|s| phr_bvh::sphere::Sphere { center: s.sphere.center + shift, ..s.sphere }).collect();
     let mut hits = 0;
     for (i, ray) in rays(3000, 7).iter().enumerate() {
-        let mut want = brute_force_triangles(&g, ray);
+        let mut want = brute_force_triangles(g, ray);
         for (k, s) in spheres.iter().enumerate() {
             if let Some(t) = s.intersect(ray) {
                 if want.is_none_or(|(bt, _)| t < bt) {
@@ -185,25 +203,31 @@ fn placed_parts_equal_brute_force() {
             }
         }
         let got = g.intersect(ray);
+        assert_eq!(g.occluded(ray), want.is_some(), "layout {layout}, ray {i}: shadow query");
         match (want, got) {
             (None, None) => {}
             (Some((t, prim)), Some(h)) => {
-                assert!(prim == h.prim && close(t, h.t), "ray {i}: want {t} on {prim}, got {} on {}", h.t, h.prim);
+                assert!(
+                    prim == h.prim && close(t, h.t),
+                    "layout {layout}, ray {i}: want {t} on {prim}, got {} on {}",
+                    h.t,
+                    h.prim
+                );
                 hits += 1;
                 if prim < n {
                     let [a, b, c] = g.world_triangle(prim as usize);
                     let normal = triangle_normal(a, b, c).normalize();
                     let sp = g.surface_point(ray, &h);
-                    assert!(sp.normal.dot(normal) > 0.9999, "ray {i}: normal {} vs {normal}", sp.normal);
-                    assert!((sp.position - ray.at(h.t)).length() < 1e-3, "ray {i}: position");
+                    assert!(
+                        sp.normal.dot(normal) > 0.9999,
+                        "layout {layout}, ray {i}: normal {} vs {normal}",
+                        sp.normal
+                    );
+                    assert!((sp.position - ray.at(h.t)).length() < 1e-3, "layout {layout}, ray {i}: position");
                 }
             }
-            _ => panic!("ray {i}: want {want:?}, got {:?}", got.map(|h| (h.t, h.prim))),
+            _ => panic!("layout {layout}, ray {i}: want {want:?}, got {:?}", got.map(|h| (h.t, h.prim))),
         }
     }
-    assert!(hits > 500, "too few hits to prove anything: {hits}");
-    // Back to one tree over everything, in place.
-    g.set_bvh(Builder::PHR_FAST.build(&g.boxes));
-    assert_eq!(g.part_count(), 1);
-    assert_eq!(g.world_triangle(3), g.triangles[3]);
+    assert!(hits > 500, "layout {layout}: too few hits to prove anything: {hits}");
 }
