@@ -265,6 +265,9 @@ pub enum AnimationTarget {
 
 /// One animated mesh's rest state and where its triangles sit in the geometry.
 struct PosedMesh {
+    /// Moved as a whole by one affine map: procedural rotations and oscillations, and no
+    /// other animation of the same mesh (two animations pose it in turn).
+    rigid: bool,
     triangles: Range<usize>,
     indices: Vec<[u32; 3]>,
     rest: Vec<Vec3>,
@@ -302,7 +305,10 @@ impl Animator {
             match a.target {
                 AnimationTarget::Mesh(m) => {
                     let mesh = &scene.meshes[m];
+                    let rigid = matches!(&a.animation, Animation::Procedural(m) if Motion::affine_all(m, 0.0).is_some())
+                        && scene.animations.iter().filter(|b| b.target == a.target).count() == 1;
                     meshes.push(PosedMesh {
+                        rigid,
                         triangles: first_triangle[m]..first_triangle[m] + mesh.triangles.len(),
                         indices: mesh.triangles.clone(),
                         rest: mesh.positions.clone(),
@@ -336,7 +342,7 @@ impl Animator {
     pub fn objects(&self, triangle_count: usize) -> Vec<MovingObject> {
         let meshes = self.meshes.iter().map(|m| MovingObject {
             prims: (m.triangles.start as u32..m.triangles.end as u32).collect(),
-            rigid: m.rigid_transform(0.0).is_some(),
+            rigid: m.rigid,
         });
         let spheres =
             self.spheres.iter().map(|(s, ..)| MovingObject { prims: vec![(triangle_count + s) as u32], rigid: true });
@@ -360,7 +366,7 @@ impl Animator {
     /// placed by [`Animator::rigid_transform`]). Boxes are not recomputed.
     pub fn pose_deforming(&mut self, geometry: &mut Geometry, t: f32) {
         for mesh in &mut self.meshes {
-            if mesh.rigid_transform(0.0).is_none() {
+            if !mesh.rigid {
                 mesh.pose(geometry, t);
             }
         }
@@ -399,8 +405,8 @@ impl PosedMesh {
     /// count as deformations: their parts move differently.)
     fn rigid_transform(&self, t: f32) -> Option<Affine3A> {
         match &self.animation {
-            Animation::Procedural(motions) => Motion::affine_all(motions, t),
-            Animation::Nodes(_) => None,
+            Animation::Procedural(motions) if self.rigid => Motion::affine_all(motions, t),
+            _ => None,
         }
     }
 }

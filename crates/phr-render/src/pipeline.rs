@@ -410,18 +410,22 @@ impl FramePipeline {
     fn split(&mut self) -> Parts {
         let objects = self.animator.objects(self.geometry.triangles.len());
         let mut moving = vec![false; self.geometry.prim_count()];
-        let mut deforming = Vec::new();
-        let mut rigid = Vec::new();
-        for (k, object) in objects.iter().enumerate() {
+        for object in &objects {
             for &p in &object.prims {
                 moving[p as usize] = true;
             }
+        }
+        let mut deforming = Vec::new();
+        let mut rigid = Vec::new();
+        for (k, object) in objects.iter().enumerate() {
             if object.rigid {
                 rigid.push(k);
             } else {
                 deforming.extend_from_slice(&object.prims);
             }
         }
+        deforming.sort_unstable();
+        deforming.dedup();
         let still: Vec<u32> = (0..moving.len() as u32).filter(|&p| !moving[p as usize]).collect();
         let mut groups = Vec::new();
         let mut part = |prims: Vec<u32>| {
