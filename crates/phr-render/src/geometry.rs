@@ -328,14 +328,14 @@ impl Geometry {
         &self.parts[k].bvh
     }
 
-    /// Takes the whole scene's tree out (leaving an empty one: nothing is hit until the next
-    /// [`Geometry::set_bvh`]).
+    /// Takes the whole scene's tree out (after [`Geometry::split`]: the first part's), leaving
+    /// one empty part: nothing is hit until the next [`Geometry::set_bvh`].
     pub fn take_bvh(&mut self) -> Bvh {
-        self.set_bvh(Bvh::default());
-        let part = &mut self.parts[0];
-        part.wide = WideBvh::default();
-        part.packed = PackedTriangles::default();
-        std::mem::take(&mut part.bvh)
+        let bvh = std::mem::take(&mut self.parts[0].bvh);
+        self.parts = vec![Part::default()];
+        self.placement = None;
+        self.prim_part = Vec::new();
+        bvh
     }
 
     /// The wide tree the queries trace (after [`Geometry::split`]: the first part's).

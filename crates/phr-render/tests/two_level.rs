@@ -221,9 +221,15 @@ fn placed_parts_equal_brute_force() {
         check_placed(&g, n, shift, layout);
     }
     // Back to one tree over everything, in place.
-    g.set_bvh(Builder::PHR_FAST.build(&g.boxes));
+    let tree = Builder::PHR_FAST.build(&g.boxes);
+    let nodes = tree.nodes.len();
+    g.set_bvh(tree);
     assert_eq!(g.part_count(), 1);
     assert_eq!(g.world_triangle(3), g.triangles[3]);
+    assert!(rays(100, 3).iter().any(|r| g.intersect(r).is_some()));
+    // The benchmarks take the tree out to set it again: they must get it back, not an empty one.
+    assert_eq!(g.take_bvh().nodes.len(), nodes, "take_bvh hands the tree back");
+    assert!(rays(100, 3).iter().all(|r| g.intersect(r).is_none()), "nothing is hit after take_bvh");
 }
 
 /// [`placed_parts_equal_brute_force`] for one placement: the spheres (primitives `n`, `n + 1`)
