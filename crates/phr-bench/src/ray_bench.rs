@@ -60,6 +60,9 @@ pub struct RayBenchOptions {
     pub embree: bool,
     /// Where Embree's JSON results are kept (`DIR/embree/SCENE.json`).
     pub out: PathBuf,
+    /// Keep the triangles and ray sets in `DIR/rays/SCENE/` (the format of
+    /// `bench/embree_rays.py`), for other tracers to replay.
+    pub export_rays: bool,
 }
 
 /// The measurements of one scene and ray kind.
@@ -146,9 +149,14 @@ pub fn measure_scene(path: &Path, options: &RayBenchOptions, progress: &dyn Prog
     if options.embree && script.is_none() {
         progress.note("Embree skipped: bench/embree_rays.py not found (run from the repository)".into());
     }
-    let export = match script {
-        Some(_) => Some(export_dir("bench-rays", &name)?),
-        None => None,
+    let export = if options.export_rays {
+        let dir = options.out.join("rays").join(&name);
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+        Some(dir)
+    } else if script.is_some() {
+        Some(export_dir("bench-rays", &name)?)
+    } else {
+        None
     };
     if let Some(dir) = &export {
         write_triangles(dir, &trees.tris)?;
@@ -163,9 +171,11 @@ pub fn measure_scene(path: &Path, options: &RayBenchOptions, progress: &dyn Prog
         }
         rows.push(measure_kind(&name, kind, rays, &reference, &trees, options, progress)?);
     }
-    if let (Some(script), Some(dir)) = (script, export) {
+    if let (Some(script), Some(dir)) = (script, &export) {
         progress.status(format!("{name}: Embree"));
-        info.embree_build_ms = add_embree(&name, &script, &dir, &mut rows, options, progress)?;
+        info.embree_build_ms = add_embree(&name, &script, dir, &mut rows, options, progress)?;
+    }
+    if let Some(dir) = export.filter(|_| !options.export_rays) {
         let _ = std::fs::remove_dir_all(&dir);
     }
     Ok((info, rows))

@@ -60,6 +60,10 @@ pub struct BenchRaysArgs {
     /// Skip Embree.
     #[arg(long)]
     pub no_embree: bool,
+    /// Keep each scene's triangles and ray sets in OUT/rays/SCENE/ (large: 250 MB for
+    /// dragons8), for other tracers to replay; `docs/bench-rays/embree_packets.c` reads them.
+    #[arg(long)]
+    pub export_rays: bool,
 }
 
 impl BenchRaysArgs {
@@ -72,6 +76,7 @@ impl BenchRaysArgs {
             repeats: self.repeats,
             embree: !self.no_embree,
             out: self.out.clone(),
+            export_rays: self.export_rays,
         }
     }
 }

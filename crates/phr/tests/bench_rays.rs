@@ -40,3 +40,31 @@ fn ray_benchmark_writes_every_kind_variant_and_thread_count() {
     let md = std::fs::read_to_string(dir.join("out/bench-rays.md")).unwrap();
     assert!(md.contains("| bunny | 69451 |") && md.contains("## 2 thread(s)"), "{md}");
 }
+
+/// `--export-rays` keeps what a peer replays: the triangles and each kind's rays, each file
+/// a count and then that many records, the count equal to the scene's and the ray set's.
+#[test]
+fn exported_rays_have_the_peer_format() {
+    let dir = TempDir::new("bench-rays-export");
+    let scene = repo_path("scenes/suite/bunny.json");
+    let args = ["bench-rays", "--scene", scene.to_str().unwrap(), "--res", "16", "--rays", "500"];
+    let args =
+        [&args[..], &["--threads", "1", "--repeats", "1", "--no-embree", "--export-rays", "--out", "out"]].concat();
+    phr_ok(&dir.0, &args, Duration::from_secs(300));
+    let read = |name: &str, record: usize| {
+        let bytes = std::fs::read(dir.join("out/rays/bunny").join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let count = u32::from_le_bytes(bytes[..4].try_into().unwrap()) as usize;
+        assert_eq!(bytes.len(), 4 + count * record, "{name}: {count} records of {record} bytes");
+        count
+    };
+    assert_eq!(read("triangles.bin", 36), 69451);
+    assert_eq!(read("rays_primary.bin", 24), 16 * 16);
+    assert_eq!(read("tfar_primary.bin", 4), 16 * 16);
+    assert_eq!(read("rays_incoherent.bin", 24), 500);
+    for kind in ["diffuse", "shadow"] {
+        let rays = read(&format!("rays_{kind}.bin"), 24);
+        assert_eq!(read(&format!("tfar_{kind}.bin"), 4), rays);
+        let hits = std::fs::read(dir.join("out/rays/bunny").join(format!("hits_{kind}.bin"))).unwrap();
+        assert_eq!(hits.len(), rays * 8, "{kind}: one (primitive, t) per ray");
+    }
+}
