@@ -96,10 +96,28 @@ pub struct Geometry {
 struct Placement {
     /// Parts in place (identity instances): searched first, with the world ray as it is.
     in_place: Vec<u32>,
+    /// Their boxes.
+    in_place_bounds: Vec<Aabb>,
     /// Parts moved by a transform; instance `i` of `top` is part `moved[i]`.
     moved: Vec<u32>,
+    /// Their world boxes. A ray that misses a part's box, or meets it beyond its closest hit
+    /// so far, skips the part: no transform into it, no traversal setup, no root visit (most
+    /// rays miss a small moving object; measured in `docs/dynamic/history.md`).
+    moved_bounds: Vec<Aabb>,
     /// Over the moved parts, when there are more than [`DIRECT_MOVED`].
     top: TopLevel,
+}
+
+impl Placement {
+    /// Part `k`'s tree changed: its box (in place or moved) becomes `bounds`.
+    fn update_bounds(&mut self, k: u32, bounds: Aabb) {
+        let lists = [(&self.in_place, &mut self.in_place_bounds), (&self.moved, &mut self.moved_bounds)];
+        for (parts, boxes) in lists {
+            if let Some(i) = parts.iter().position(|&p| p == k) {
+                boxes[i] = bounds;
+            }
+        }
+    }
 }
 
 /// Up to this many moved parts are searched one after the other without a top-level tree.
@@ -244,7 +262,8 @@ impl Geometry {
 
     /// Sets part `k`'s tree, built over [`Geometry::part_boxes`] (its primitives numbered
     /// from 0 in its order), and derives its wide tree and packed triangles. Returns the time
-    /// of the collapse and the packing. The top level is not updated: [`Geometry::place`].
+    /// of the collapse and the packing. The part's box for culling is updated, the top level
+    /// is not: [`Geometry::place`].
     pub fn set_part_bvh(&mut self, k: usize, mut bvh: Bvh) -> std::time::Duration {
         let start = std::time::Instant::now();
         let part = &mut self.parts[k];
@@ -263,6 +282,9 @@ impl Geometry {
         };
         let elapsed = start.elapsed();
         part.bvh = bvh;
+        if let Some(placement) = &mut self.placement {
+            placement.update_bounds(k as u32, self.parts[k].world_bounds());
+        }
         elapsed
     }
 
@@ -283,12 +305,12 @@ impl Geometry {
         let parts = 0..self.parts.len() as u32;
         let is_moved = |k: &u32| !self.parts[*k as usize].instance.is_identity();
         placement.in_place = parts.clone().filter(|k| !is_moved(k)).collect();
+        placement.in_place_bounds = placement.in_place.iter().map(|&k| self.parts[k as usize].world_bounds()).collect();
         placement.moved = parts.filter(is_moved).collect();
+        placement.moved_bounds = placement.moved.iter().map(|&k| self.parts[k as usize].world_bounds()).collect();
         if placement.moved.len() > DIRECT_MOVED {
-            let moved = placement.moved.iter().map(|&k| &self.parts[k as usize]);
-            let instances = moved.clone().map(|p| p.instance).collect();
-            let boxes: Vec<Aabb> = moved.map(Part::world_bounds).collect();
-            placement.top.rebuild(instances, &boxes);
+            let instances = placement.moved.iter().map(|&k| self.parts[k as usize].instance).collect();
+            placement.top.rebuild(instances, &placement.moved_bounds);
         }
         self.placement = Some(placement);
     }
@@ -373,7 +395,10 @@ impl Geometry {
     fn search_parts<const ANY: bool>(&self, ray: &mut Ray, mut search: impl FnMut(u32, &mut Ray) -> bool) -> bool {
         let Some(placement) = &self.placement else { return search(0, ray) };
         let mut found = false;
-        for &k in &placement.in_place {
+        for (&k, bounds) in placement.in_place.iter().zip(&placement.in_place_bounds) {
+            if bounds.intersect(ray) == f32::INFINITY {
+                continue;
+            }
             if search(k, ray) {
                 found = true;
                 if ANY {
@@ -382,7 +407,10 @@ impl Geometry {
             }
         }
         if placement.moved.len() <= DIRECT_MOVED {
-            for &k in &placement.moved {
+            for (&k, bounds) in placement.moved.iter().zip(&placement.moved_bounds) {
+                if bounds.intersect(ray) == f32::INFINITY {
+                    continue;
+                }
                 let mut object_ray = self.parts[k as usize].instance.object_ray(ray);
                 if search(k, &mut object_ray) {
                     ray.tmax = object_ray.tmax;

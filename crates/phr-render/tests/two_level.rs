@@ -220,6 +220,14 @@ fn placed_parts_equal_brute_force() {
         g.place(&[(0, m[0]), (1, m[1]), (2, m[2]), (3, m[3])]);
         check_placed(&g, n, shift, layout);
     }
+    // Part 2 (in place) deforms: its new tree alone, without placing again, must be found
+    // where its triangles now are (rays skip a part whose box they miss).
+    for t in &mut g.triangles[9..] {
+        *t = t.map(|v| v * Vec3::new(1.0, 1.6, 1.0) + Vec3::new(1.5, 0.7, 0.0));
+    }
+    let boxes = g.part_boxes(2);
+    g.set_part_bvh(2, Builder::PHR_HQ.build(&boxes));
+    check_placed(&g, n, shift, 2);
     // Back to one tree over everything, in place.
     let tree = Builder::PHR_FAST.build(&g.boxes);
     let nodes = tree.nodes.len();
