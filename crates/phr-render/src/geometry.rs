@@ -94,16 +94,16 @@ pub struct Geometry {
 /// Which parts a ray visits, and how.
 #[derive(Default)]
 struct Placement {
-    /// Parts in place (identity instances): searched first, with the world ray as it is.
-    in_place: Vec<u32>,
-    /// Their boxes.
-    in_place_bounds: Vec<Aabb>,
-    /// Parts moved by a transform; instance `i` of `top` is part `moved[i]`.
-    moved: Vec<u32>,
-    /// Their world boxes. A ray that misses a part's box, or meets it beyond its closest hit
-    /// so far, skips the part: no transform into it, no traversal setup, no root visit (most
-    /// rays miss a small moving object; measured in `docs/dynamic/history.md`).
-    moved_bounds: Vec<Aabb>,
+    /// Parts in place (identity instances), with their boxes: searched first, with the world
+    /// ray as it is.
+    in_place: Vec<(u32, Aabb)>,
+    /// Parts moved by a transform, with their world boxes; instance `i` of `top` is part
+    /// `moved[i].0`.
+    ///
+    /// A ray that misses a part's box, or meets it beyond its closest hit so far, skips the
+    /// part: no transform into it, no traversal setup, no root visit (most rays miss a small
+    /// moving object; measured in `docs/dynamic/history.md`).
+    moved: Vec<(u32, Aabb)>,
     /// Over the moved parts, when there are more than [`DIRECT_MOVED`].
     top: TopLevel,
 }
@@ -111,18 +111,15 @@ struct Placement {
 impl Placement {
     /// Part `k`'s tree changed: its box (in place or moved) becomes `bounds`.
     fn update_bounds(&mut self, k: u32, bounds: Aabb) {
-        let lists = [(&self.in_place, &mut self.in_place_bounds), (&self.moved, &mut self.moved_bounds)];
-        for (parts, boxes) in lists {
-            if let Some(i) = parts.iter().position(|&p| p == k) {
-                boxes[i] = bounds;
-            }
+        if let Some(entry) = self.in_place.iter_mut().chain(&mut self.moved).find(|(p, _)| *p == k) {
+            entry.1 = bounds;
         }
     }
 }
 
 /// Up to this many moved parts are searched one after the other without a top-level tree.
 /// Its traversal (a kernel call, a node test, ordering) cost about 10 % of the frame on
-/// scenes with one moving object, which the BLAS's own root test culls as well.
+/// scenes with one moving object, which the parts' boxes cull as well.
 const DIRECT_MOVED: usize = 2;
 
 /// Some of the primitives with their own trees, placed in the world by an instance.
@@ -302,15 +299,13 @@ impl Geometry {
             }
         }
         let mut placement = self.placement.take().unwrap_or_default();
-        let parts = 0..self.parts.len() as u32;
-        let is_moved = |k: &u32| !self.parts[*k as usize].instance.is_identity();
-        placement.in_place = parts.clone().filter(|k| !is_moved(k)).collect();
-        placement.in_place_bounds = placement.in_place.iter().map(|&k| self.parts[k as usize].world_bounds()).collect();
-        placement.moved = parts.filter(is_moved).collect();
-        placement.moved_bounds = placement.moved.iter().map(|&k| self.parts[k as usize].world_bounds()).collect();
+        let parts = self.parts.iter().enumerate().map(|(k, part)| (k as u32, part.world_bounds()));
+        (placement.moved, placement.in_place) =
+            parts.partition(|&(k, _)| !self.parts[k as usize].instance.is_identity());
         if placement.moved.len() > DIRECT_MOVED {
-            let instances = placement.moved.iter().map(|&k| self.parts[k as usize].instance).collect();
-            placement.top.rebuild(instances, &placement.moved_bounds);
+            let instances = placement.moved.iter().map(|&(k, _)| self.parts[k as usize].instance).collect();
+            let boxes: Vec<Aabb> = placement.moved.iter().map(|&(_, b)| b).collect();
+            placement.top.rebuild(instances, &boxes);
         }
         self.placement = Some(placement);
     }
@@ -395,7 +390,7 @@ impl Geometry {
     fn search_parts<const ANY: bool>(&self, ray: &mut Ray, mut search: impl FnMut(u32, &mut Ray) -> bool) -> bool {
         let Some(placement) = &self.placement else { return search(0, ray) };
         let mut found = false;
-        for (&k, bounds) in placement.in_place.iter().zip(&placement.in_place_bounds) {
+        for &(k, bounds) in &placement.in_place {
             if bounds.intersect(ray) == f32::INFINITY {
                 continue;
             }
@@ -407,7 +402,7 @@ impl Geometry {
             }
         }
         if placement.moved.len() <= DIRECT_MOVED {
-            for (&k, bounds) in placement.moved.iter().zip(&placement.moved_bounds) {
+            for &(k, bounds) in &placement.moved {
                 if bounds.intersect(ray) == f32::INFINITY {
                     continue;
                 }
@@ -421,9 +416,9 @@ impl Geometry {
                 }
             }
         } else if ANY {
-            found |= placement.top.any_hit(ray, |i, r| search(placement.moved[i as usize], &mut r.clone()));
+            found |= placement.top.any_hit(ray, |i, r| search(placement.moved[i as usize].0, &mut r.clone()));
         } else {
-            found |= placement.top.closest_hit(ray, |i, r| search(placement.moved[i as usize], r));
+            found |= placement.top.closest_hit(ray, |i, r| search(placement.moved[i as usize].0, r));
         }
         found
     }
