@@ -92,6 +92,12 @@ impl Aabb {
         2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
     }
 
+    /// The box both enclose (empty if they are disjoint).
+    #[inline]
+    pub fn overlap(self, o: Aabb) -> Self {
+        Self { min: fast_max(self.min, o.min), max: fast_min(self.max, o.max) }
+    }
+
     /// True if `o` lies inside `self` (inclusive); the empty box is inside everything.
     pub fn contains(&self, o: &Aabb) -> bool {
         o.is_empty() || (self.min.cmple(o.min).all() && self.max.cmpge(o.max).all())

@@ -3,14 +3,16 @@
 //!
 //! Names: `lbvh`, `phr-fast` (α = 0.5, δ = 6), `phr-hq` (α = 0.55, δ = 9), `phr:α,δ`,
 //! `phr-thesis:α,δ` (PHR with the thesis's auxiliary-node weights and initial-cut cap),
-//! `sweep-sah`, `binned-sah`.
+//! `sweep-sah`, `binned-sah`, `sbvh`.
 
 use crate::aabb::Aabb;
 use crate::binned_sah::{build_binned_sah, BinnedSahOptions};
 use crate::lbvh::{build_lbvh, LbvhOptions};
 use crate::node::Bvh;
 use crate::phr::{build_phr, AuxTree, PhrOptions, PhrStats};
+use crate::sbvh::{build_sbvh, SbvhOptions};
 use crate::sweep_sah::{build_sweep_sah, SweepSahOptions};
+use glam::Vec3;
 use std::fmt;
 use std::str::FromStr;
 use std::time::{Duration, Instant};
@@ -23,6 +25,8 @@ pub enum Builder {
     Phr(PhrOptions),
     SweepSah(SweepSahOptions),
     BinnedSah(BinnedSahOptions),
+    /// [`crate::sbvh`]: binned SAH with spatial splits (a primitive may be in several leaves).
+    Sbvh(SbvhOptions),
 }
 
 impl Default for Builder {
@@ -58,6 +62,17 @@ impl Builder {
     }
 
     pub fn build_timed(&self, boxes: &[Aabb]) -> BuildReport {
+        self.build_timed_with_triangles(boxes, &[])
+    }
+
+    /// [`Builder::build`] for primitives of which the first `triangles.len()` are these
+    /// triangles (with `boxes[..triangles.len()]` their boxes): the SBVH clips them exactly
+    /// (it cuts the others as boxes); the other builders need the boxes only.
+    pub fn build_with_triangles(&self, boxes: &[Aabb], triangles: &[[Vec3; 3]]) -> Bvh {
+        self.build_timed_with_triangles(boxes, triangles).bvh
+    }
+
+    pub fn build_timed_with_triangles(&self, boxes: &[Aabb], triangles: &[[Vec3; 3]]) -> BuildReport {
         let start = Instant::now();
         match self {
             Builder::Phr(o) => {
@@ -71,6 +86,7 @@ impl Builder {
                     Builder::Lbvh(o) => build_lbvh(boxes, *o),
                     Builder::SweepSah(o) => build_sweep_sah(boxes, o),
                     Builder::BinnedSah(o) => build_binned_sah(boxes, o),
+                    Builder::Sbvh(o) => build_sbvh(boxes, triangles, o),
                     Builder::Phr(_) => unreachable!(),
                 };
                 BuildReport { bvh, aux_time: Duration::ZERO, build_time: start.elapsed(), phr: None }
@@ -85,6 +101,23 @@ impl Builder {
             Builder::Phr(o) => o.leaf.max_leaf_size,
             Builder::SweepSah(o) => o.leaf.max_leaf_size,
             Builder::BinnedSah(o) => o.leaf.max_leaf_size,
+            Builder::Sbvh(o) => o.leaf.max_leaf_size,
+        }
+    }
+
+    /// Whether this builder may put a primitive in several leaves, each enclosing a part of it
+    /// (check its trees with [`crate::validate::validate_split`]).
+    pub fn splits_primitives(&self) -> bool {
+        matches!(self, Builder::Sbvh(o) if o.max_references > 1.0)
+    }
+
+    /// Checks a tree this builder made over `boxes` ([`crate::validate()`], or
+    /// [`crate::validate::validate_split`] for the SBVH).
+    pub fn validate(&self, bvh: &Bvh, boxes: &[Aabb]) -> Result<(), String> {
+        if self.splits_primitives() {
+            crate::validate::validate_split(bvh, boxes, self.max_leaf_size())
+        } else {
+            crate::validate(bvh, boxes, self.max_leaf_size())
         }
     }
 
@@ -121,6 +154,7 @@ impl fmt::Display for Builder {
             }
             Builder::SweepSah(_) => write!(f, "sweep-sah"),
             Builder::BinnedSah(_) => write!(f, "binned-sah"),
+            Builder::Sbvh(_) => write!(f, "sbvh"),
         }
     }
 }
@@ -149,8 +183,9 @@ impl FromStr for Builder {
             "phr-hq" => Ok(Builder::PHR_HQ),
             "sweep-sah" => Ok(Builder::SweepSah(SweepSahOptions::default())),
             "binned-sah" => Ok(Builder::BinnedSah(BinnedSahOptions::default())),
+            "sbvh" => Ok(Builder::Sbvh(SbvhOptions::default())),
             other => Err(format!(
-                "unknown builder \"{other}\" (available: lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, phr-thesis:ALPHA,DELTA, sweep-sah, binned-sah)"
+                "unknown builder \"{other}\" (available: lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, phr-thesis:ALPHA,DELTA, sweep-sah, binned-sah, sbvh)"
             )),
         }
     }

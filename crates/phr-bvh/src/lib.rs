@@ -12,6 +12,8 @@
 //!   out for opening nodes and for refitting every frame).
 //! - [`sweep_sah`]: the full-sweep SAH builder, the quality reference PHR approximates.
 //! - [`binned_sah`]: the binned SAH builder, what Embree, pbrt and tinybvh use by default.
+//! - [`sbvh`]: binned SAH with spatial splits (Embree's high-quality builder): a primitive
+//!   may be cut into parts in several leaves.
 //!
 //! [`builder::Builder`] names them all for front ends; all top-down builders share one
 //! [`sah::LeafPolicy`], so their SAH costs ([`metrics::sah_cost`]) compare.
@@ -38,6 +40,7 @@ pub mod radix_sort;
 pub mod ray;
 pub mod refit;
 pub mod sah;
+pub mod sbvh;
 pub mod sphere;
 pub mod sweep_sah;
 mod topdown;

@@ -10,7 +10,7 @@ use phr_bvh::{sah_cost, validate, Builder, SahConstants};
 
 fn all_builders() -> Vec<Builder> {
     let mut builders: Vec<Builder> =
-        ["lbvh", "phr-fast", "phr-hq", "sweep-sah", "binned-sah"].iter().map(|s| s.parse().unwrap()).collect();
+        ["lbvh", "phr-fast", "phr-hq", "sweep-sah", "binned-sah", "sbvh"].iter().map(|s| s.parse().unwrap()).collect();
     for k in [4, 8, 16] {
         builders.push(Builder::PHR_FAST.with_branching(k).unwrap());
         builders.push(Builder::PHR_HQ.with_branching(k).unwrap());
@@ -32,8 +32,8 @@ fn every_builder_matches_brute_force_on_adversarial_meshes() {
         let boxes = triangle_boxes(&tris);
         let mut rng = Rng::new(tris.len() as u64);
         for builder in all_builders() {
-            let bvh = builder.build(&boxes);
-            validate(&bvh, &boxes, builder.max_leaf_size()).unwrap_or_else(|e| panic!("{name}, {builder}: {e}"));
+            let bvh = builder.build_with_triangles(&boxes, &tris);
+            builder.validate(&bvh, &boxes).unwrap_or_else(|e| panic!("{name}, {builder}: {e}"));
             let rays = random_rays(bvh.root_bounds(), 400, &mut rng);
             assert_matches_brute_force(&bvh, &tris, &rays, &format!("{name}, {builder}"));
         }
@@ -102,10 +102,10 @@ fn builders_are_deterministic_across_thread_counts() {
     let mut rng = Rng::new(5);
     let tris = random_soup(40_000, 1.0, &mut rng);
     let boxes = triangle_boxes(&tris);
-    for builder in ["phr-hq", "sweep-sah", "binned-sah"].map(|s| s.parse::<Builder>().unwrap()) {
+    for builder in ["phr-hq", "sweep-sah", "binned-sah", "sbvh"].map(|s| s.parse::<Builder>().unwrap()) {
         let build = |threads| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| builder.build(&boxes))
+            pool.install(|| builder.build_with_triangles(&boxes, &tris))
         };
         let (a, b) = (build(1), build(2));
         assert_eq!(a.nodes, b.nodes, "{builder}");
@@ -149,7 +149,7 @@ fn builders_survive_a_million_identical_or_nested_triangles() {
     let nested_exactly = nested(0.0);
     let nested_nearly = nested(1e-4);
     let depth_bound = phr_bvh::sah::MEDIAN_SPLIT_DEPTH as usize + 21;
-    let builders: Vec<Builder> = ["lbvh", "phr-fast", "phr-hq", "sweep-sah", "binned-sah"]
+    let builders: Vec<Builder> = ["lbvh", "phr-fast", "phr-hq", "sweep-sah", "binned-sah", "sbvh"]
         .iter()
         .map(|s| s.parse().unwrap())
         .chain([Builder::PHR_HQ.with_branching(8).unwrap()])
@@ -157,8 +157,8 @@ fn builders_survive_a_million_identical_or_nested_triangles() {
     for (name, tris) in [("identical", &identical), ("nested", &nested_exactly), ("nearly nested", &nested_nearly)] {
         let boxes = triangle_boxes(tris);
         for builder in &builders {
-            let bvh = builder.build(&boxes);
-            validate(&bvh, &boxes, builder.max_leaf_size()).unwrap_or_else(|e| panic!("{name}, {builder}: {e}"));
+            let bvh = builder.build_with_triangles(&boxes, tris);
+            builder.validate(&bvh, &boxes).unwrap_or_else(|e| panic!("{name}, {builder}: {e}"));
             let depth = phr_bvh::tree_stats(&bvh).max_depth;
             assert!(depth <= depth_bound, "{name}, {builder}: depth {depth} > {depth_bound}");
         }
@@ -167,14 +167,14 @@ fn builders_survive_a_million_identical_or_nested_triangles() {
 
 #[test]
 fn large_builds_take_their_parallel_paths_and_stay_exact() {
-    // Above 65536 primitives the binned SAH bins in parallel and the builders split their
-    // tops into tasks; the adversarial meshes are too small to get there.
+    // Above 65536 primitives the binned SAH bins in parallel (the SBVH above 16384) and the
+    // builders split their tops into tasks; the adversarial meshes are too small to get there.
     let mut rng = Rng::new(8);
     let tris = random_soup(100_000, 1.0, &mut rng);
     let boxes = triangle_boxes(&tris);
-    for builder in ["binned-sah", "phr-fast", "lbvh"].map(|s| s.parse::<Builder>().unwrap()) {
-        let bvh = builder.build(&boxes);
-        validate(&bvh, &boxes, builder.max_leaf_size()).unwrap_or_else(|e| panic!("{builder}: {e}"));
+    for builder in ["binned-sah", "phr-fast", "lbvh", "sbvh"].map(|s| s.parse::<Builder>().unwrap()) {
+        let bvh = builder.build_with_triangles(&boxes, &tris);
+        builder.validate(&bvh, &boxes).unwrap_or_else(|e| panic!("{builder}: {e}"));
         let rays = random_rays(bvh.root_bounds(), 200, &mut rng);
         assert_matches_brute_force(&bvh, &tris, &rays, &format!("100k soup, {builder}"));
     }

@@ -15,7 +15,7 @@ mod mutate;
 use common::*;
 use glam::Vec3;
 use phr_bvh::triangle::triangle_bounds;
-use phr_bvh::{validate, Builder, Ray, WideBvh};
+use phr_bvh::{Builder, Ray, WideBvh};
 use std::time::Duration;
 
 /// Triangles from bytes: 4 bytes a coordinate, with a palette of special values so that
@@ -44,7 +44,7 @@ fn soup(bytes: &[u8], finite: bool) -> Vec<[Vec3; 3]> {
 
 fn builders() -> Vec<Builder> {
     let mut b: Vec<Builder> =
-        ["lbvh", "phr-fast", "phr-hq", "sweep-sah", "binned-sah"].iter().map(|s| s.parse().unwrap()).collect();
+        ["lbvh", "phr-fast", "phr-hq", "sweep-sah", "binned-sah", "sbvh"].iter().map(|s| s.parse().unwrap()).collect();
     b.push(Builder::PHR_HQ.with_branching(8).unwrap());
     b
 }
@@ -54,13 +54,14 @@ fn check_finite_soup(bytes: &[u8]) {
     let boxes: Vec<phr_bvh::Aabb> = tris.iter().map(|&[a, b, c]| triangle_bounds(a, b, c)).collect();
     let mut rng = Rng::new(bytes.len() as u64);
     for builder in builders() {
-        let bvh = builder.build(&boxes);
+        let bvh = builder.build_with_triangles(&boxes, &tris);
         if tris.is_empty() {
             continue;
         }
-        validate(&bvh, &boxes, builder.max_leaf_size()).unwrap_or_else(|e| panic!("{builder}: {e}"));
+        builder.validate(&bvh, &boxes).unwrap_or_else(|e| panic!("{builder}: {e}"));
         let wide = WideBvh::<8>::from_bvh(&bvh);
-        wide.validate(&boxes).unwrap_or_else(|e| panic!("{builder}, wide: {e}"));
+        let valid = if builder.splits_primitives() { wide.validate_split(&boxes) } else { wide.validate(&boxes) };
+        valid.unwrap_or_else(|e| panic!("{builder}, wide: {e}"));
         let packed = phr_bvh::PackedTriangles::new(&wide.prim_indices, &tris);
         let bounds = bvh.root_bounds();
         let rays: Vec<Ray> = if bounds.extent().is_finite() { random_rays(bounds, 8, &mut rng) } else { Vec::new() };
@@ -76,7 +77,7 @@ fn check_any_soup(bytes: &[u8]) {
     let tris = soup(bytes, false);
     let boxes: Vec<phr_bvh::Aabb> = tris.iter().map(|&[a, b, c]| triangle_bounds(a, b, c)).collect();
     for builder in builders() {
-        let bvh = builder.build(&boxes);
+        let bvh = builder.build_with_triangles(&boxes, &tris);
         let _ = WideBvh::<8>::from_bvh(&bvh);
     }
 }

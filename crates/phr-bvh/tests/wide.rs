@@ -13,7 +13,7 @@ use phr_bvh::wide::{CollapseOptions, Lanes, Width};
 use phr_bvh::{refit, validate, Builder, Bvh, PackedTriangles, Ray, SimdLevel, WideBvh};
 
 fn builders() -> Vec<Builder> {
-    let mut b: Vec<Builder> = ["lbvh", "phr-hq", "binned-sah"].iter().map(|s| s.parse().unwrap()).collect();
+    let mut b: Vec<Builder> = ["lbvh", "phr-hq", "binned-sah", "sbvh"].iter().map(|s| s.parse().unwrap()).collect();
     for k in [3, 4, 8, 16] {
         b.push(Builder::PHR_HQ.with_branching(k).unwrap());
     }
@@ -57,13 +57,15 @@ where
     best
 }
 
-/// Checks one wide tree at every SIMD level; returns the number of hits.
-fn check_wide<const N: usize>(bvh: &Bvh, tris: &[[Vec3; 3]], rays: &[Ray], what: &str) -> usize
+/// Checks one wide tree at every SIMD level; returns the number of hits. `split`: the source
+/// tree has spatial splits.
+fn check_wide<const N: usize>(bvh: &Bvh, tris: &[[Vec3; 3]], rays: &[Ray], what: &str, split: bool) -> usize
 where
     Lanes<N>: Width<N>,
 {
-    check_wide_with::<N>(bvh, tris, rays, what, CollapseOptions::default())
-        + check_wide_with::<N>(bvh, tris, rays, &format!("{what} (source leaves)"), CollapseOptions::KEEP_LEAVES)
+    let keep = format!("{what} (source leaves)");
+    check_wide_with::<N>(bvh, tris, rays, what, CollapseOptions::default(), split)
+        + check_wide_with::<N>(bvh, tris, rays, &keep, CollapseOptions::KEEP_LEAVES, split)
 }
 
 fn check_wide_with<const N: usize>(
@@ -72,13 +74,15 @@ fn check_wide_with<const N: usize>(
     rays: &[Ray],
     what: &str,
     options: CollapseOptions,
+    split: bool,
 ) -> usize
 where
     Lanes<N>: Width<N>,
 {
     let boxes = triangle_boxes(tris);
     let mut wide = WideBvh::<N>::from_bvh_with(bvh, options);
-    wide.validate(&boxes).unwrap_or_else(|e| panic!("{what}, wide-{N}: {e}"));
+    let valid = if split { wide.validate_split(&boxes) } else { wide.validate(&boxes) };
+    valid.unwrap_or_else(|e| panic!("{what}, wide-{N}: {e}"));
     let mut packed = PackedTriangles::new(&wide.prim_indices, tris);
     let mut hits = 0;
     for level in SimdLevel::supported() {
@@ -118,14 +122,15 @@ fn wide_matches_binary_and_brute_force_on_adversarial_meshes() {
         let boxes = triangle_boxes(&tris);
         let mut rng = Rng::new(tris.len() as u64 + 5);
         for builder in builders() {
-            let bvh = builder.build(&boxes);
-            validate(&bvh, &boxes, builder.max_leaf_size()).unwrap();
+            let bvh = builder.build_with_triangles(&boxes, &tris);
+            builder.validate(&bvh, &boxes).unwrap();
             let mut rays = random_rays(bvh.root_bounds(), 150, &mut rng);
             let bounces = bounce_rays(&tris, &rays, &mut rng);
             rays.extend(bounces);
             let what = format!("{name}, {builder}");
-            total_hits += check_wide::<4>(&bvh, &tris, &rays, &what);
-            total_hits += check_wide::<8>(&bvh, &tris, &rays, &what);
+            let split = builder.splits_primitives();
+            total_hits += check_wide::<4>(&bvh, &tris, &rays, &what, split);
+            total_hits += check_wide::<8>(&bvh, &tris, &rays, &what, split);
             total_rays += 2 * rays.len() * SimdLevel::supported().len();
         }
     }
@@ -187,7 +192,8 @@ fn deep_chain_uses_the_heap_stack_and_still_matches() {
     refit(&mut bvh, &boxes);
     validate(&bvh, &boxes, 1).unwrap();
     let rays = random_rays(bvh.root_bounds(), 60, &mut rng);
-    let hits = check_wide::<4>(&bvh, &tris, &rays, "chain") + check_wide::<8>(&bvh, &tris, &rays, "chain");
+    let hits =
+        check_wide::<4>(&bvh, &tris, &rays, "chain", false) + check_wide::<8>(&bvh, &tris, &rays, "chain", false);
     assert!(hits > 0);
 }
 
@@ -377,11 +383,13 @@ fn large_trees_collapse_in_parallel_identically_and_correctly() {
     let tris = random_soup(40_000, 1.0, &mut rng);
     let boxes = triangle_boxes(&tris);
     let rays = random_rays(boxes.iter().fold(phr_bvh::Aabb::EMPTY, |a, b| a.union(*b)), 300, &mut rng);
-    for builder in [Builder::PHR_FAST, "lbvh".parse().unwrap(), Builder::PHR_HQ.with_branching(8).unwrap()] {
-        let bvh = builder.build(&boxes);
+    let sbvh: Builder = "sbvh".parse().unwrap();
+    for builder in [Builder::PHR_FAST, "lbvh".parse().unwrap(), Builder::PHR_HQ.with_branching(8).unwrap(), sbvh] {
+        let bvh = builder.build_with_triangles(&boxes, &tris);
         let what = format!("40k soup, {builder}");
-        assert!(check_wide::<8>(&bvh, &tris, &rays, &what) > 0, "{what}: no hits");
-        check_wide::<4>(&bvh, &tris, &rays, &what);
+        let split = builder.splits_primitives();
+        assert!(check_wide::<8>(&bvh, &tris, &rays, &what, split) > 0, "{what}: no hits");
+        check_wide::<4>(&bvh, &tris, &rays, &what, split);
         let collapse = |threads| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             pool.install(|| WideBvh::<8>::from_bvh(&bvh))

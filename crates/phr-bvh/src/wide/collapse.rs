@@ -314,17 +314,26 @@ impl Emit<'_> {
     }
 
     /// Appends the primitives of leaf bin `b` to `out`, starting at an aligned position;
-    /// returns where they start.
-    fn emit_leaf(&self, b: u32, out: &mut Vec<u32>, stack: &mut Vec<u32>) -> u32 {
+    /// returns where they start and how many there are. A merged subtree of a tree with
+    /// spatial splits may hold two parts of one primitive: it is written once.
+    fn emit_leaf(&self, b: u32, out: &mut Vec<u32>, stack: &mut Vec<u32>) -> (u32, u32) {
         out.resize(out.len().next_multiple_of(self.align), PAD);
-        let start = out.len() as u32;
+        let start = out.len();
         let bin = &self.bins[b as usize];
         if bin.is_leaf() {
             out.extend_from_slice(&self.src.prim_indices[bin.first as usize..(bin.first + bin.count) as usize]);
         } else {
             subtree_prims(self.bins, self.src, b, out, stack);
+            let mut end = start;
+            for i in start..out.len() {
+                if !out[start..end].contains(&out[i]) {
+                    out[end] = out[i];
+                    end += 1;
+                }
+            }
+            out.truncate(end);
         }
-        start
+        (start as u32, (out.len() - start) as u32)
     }
 
     /// The wide node over the slots `kids`: every slot's box, leaves emitted into `prims`,
@@ -340,8 +349,7 @@ impl Emit<'_> {
         for (slot, &kid) in kids.iter().enumerate() {
             node.set_child_bounds(slot, self.bins[kid as usize].bounds);
             if self.is_leaf(kid) {
-                node.child[slot] = self.emit_leaf(kid, prims, stack);
-                node.count[slot] = self.bins[kid as usize].prims;
+                (node.child[slot], node.count[slot]) = self.emit_leaf(kid, prims, stack);
             } else {
                 node.child[slot] = interior(slot, kid);
             }

@@ -372,11 +372,22 @@ impl<const N: usize> WideBvh<N> {
     /// in bounds, empty slots empty, and the stack bound large enough. `boxes` (the
     /// primitives' boxes, by the caller's index) are checked to lie inside their leaf's box.
     pub fn validate(&self, boxes: &[crate::Aabb]) -> Result<(), String> {
+        self.check(boxes, false)
+    }
+
+    /// [`WideBvh::validate`] for a tree collapsed from one with spatial splits
+    /// ([`crate::validate::validate_split`]): a primitive may be in several leaves (not
+    /// twice in one), and a leaf's box need only meet its primitives' boxes.
+    pub fn validate_split(&self, boxes: &[crate::Aabb]) -> Result<(), String> {
+        self.check(boxes, true)
+    }
+
+    fn check(&self, boxes: &[crate::Aabb], split: bool) -> Result<(), String> {
         if self.nodes.is_empty() {
             return if boxes.is_empty() { Ok(()) } else { Err(format!("{} primitives but no nodes", boxes.len())) };
         }
         let refs = self.prim_indices.iter().filter(|&&p| p != PAD).count();
-        if refs != boxes.len() {
+        if refs != boxes.len() && !(split && refs > boxes.len()) {
             return Err(format!("{refs} primitive references for {} primitives", boxes.len()));
         }
         let mut seen_node = vec![false; self.nodes.len()];
@@ -431,12 +442,18 @@ impl<const N: usize> WideBvh<N> {
                         if p == PAD {
                             return Err(format!("node {i} slot {s}: padding inside a leaf"));
                         }
+                        if split && self.prim_indices[first..r].contains(&p) {
+                            return Err(format!("node {i} slot {s} holds primitive {p} twice"));
+                        }
                         let p = p as usize;
                         let seen = seen_prim.get_mut(p).ok_or(format!("primitive {p} out of range"))?;
-                        if std::mem::replace(seen, true) {
+                        if std::mem::replace(seen, true) && !split {
                             return Err(format!("primitive {p} in more than one leaf"));
                         }
-                        if !b.contains(&boxes[p]) {
+                        if split && !boxes[p].is_empty() && b.overlap(boxes[p]).is_empty() {
+                            return Err(format!("node {i} slot {s} does not meet primitive {p}"));
+                        }
+                        if !split && !b.contains(&boxes[p]) {
                             return Err(format!("node {i} slot {s} does not enclose primitive {p}"));
                         }
                     }

@@ -44,10 +44,11 @@ enum BuilderChoice {
     PhrTuned,
     SweepSah,
     BinnedSah,
+    Sbvh,
 }
 
 impl BuilderChoice {
-    const ALL: [BuilderChoice; 7] = [
+    const ALL: [BuilderChoice; 8] = [
         BuilderChoice::Lbvh,
         BuilderChoice::PhrFast,
         BuilderChoice::PhrHq,
@@ -55,6 +56,7 @@ impl BuilderChoice {
         BuilderChoice::PhrTuned,
         BuilderChoice::SweepSah,
         BuilderChoice::BinnedSah,
+        BuilderChoice::Sbvh,
     ];
 
     fn label(self) -> &'static str {
@@ -66,6 +68,7 @@ impl BuilderChoice {
             BuilderChoice::PhrTuned => "PHR tuned (BO)",
             BuilderChoice::SweepSah => "Sweep SAH",
             BuilderChoice::BinnedSah => "Binned SAH",
+            BuilderChoice::Sbvh => "SBVH (spatial splits)",
         }
     }
 
@@ -146,6 +149,7 @@ pub fn run(args: &ViewArgs, pipeline: FramePipeline) -> Result<(), WindowError> 
         Builder::Lbvh(_) => (BuilderChoice::Lbvh, 0.5, 6.0, 2),
         Builder::SweepSah(_) => (BuilderChoice::SweepSah, 0.5, 6.0, 2),
         Builder::BinnedSah(_) => (BuilderChoice::BinnedSah, 0.5, 6.0, 2),
+        Builder::Sbvh(_) => (BuilderChoice::Sbvh, 0.5, 6.0, 2),
         Builder::Phr(o) if (o.alpha, o.delta) == (PhrOptions::FAST.alpha, PhrOptions::FAST.delta) => {
             (BuilderChoice::PhrFast, o.alpha, o.delta, o.branching)
         }
@@ -273,6 +277,7 @@ impl ViewerApp {
             }
             BuilderChoice::SweepSah => Builder::SweepSah(Default::default()),
             BuilderChoice::BinnedSah => Builder::BinnedSah(Default::default()),
+            BuilderChoice::Sbvh => Builder::Sbvh(Default::default()),
         }
     }
 
