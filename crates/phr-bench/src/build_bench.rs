@@ -55,7 +55,7 @@ pub fn measure_builder(
 ) -> BuildRow {
     let mut reports: Vec<_> = (0..repeats.max(1))
         .map(|_| {
-            let report = builder.build_timed(&geometry.boxes);
+            let report = geometry.build_report(builder);
             (report.total_time(), report)
         })
         .collect();

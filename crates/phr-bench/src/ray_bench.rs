@@ -139,7 +139,7 @@ pub fn measure_scene(path: &Path, options: &RayBenchOptions, progress: &dyn Prog
 
     progress.status(format!("{name}: rays"));
     // The diffuse bounces come from the scene's own geometry (with its spheres, if any).
-    geometry.build(|b| options.builder.build(b));
+    geometry.build(&options.builder);
     let set = RaySet::new(&geometry, &Camera::new(&view, options.res, options.res), options.res);
     let bounds = geometry.boxes[..trees.tris.len()].iter().fold(Aabb::EMPTY, |b, x| b.union(*x));
     let shadow = shadow_rays(&set.diffuse, bounds);
@@ -184,7 +184,7 @@ pub fn measure_scene(path: &Path, options: &RayBenchOptions, progress: &dyn Prog
 /// The binary tree, its wide collapses and packed triangles, with their times and sizes.
 fn build_trees(name: &str, geometry: &Geometry, builder: &Builder) -> (Trees, SceneInfo) {
     let tris = geometry.triangles.clone();
-    let report = builder.build_timed(&geometry.boxes[..tris.len()]);
+    let report = builder.build_timed_with_triangles(&geometry.boxes[..tris.len()], &tris);
     let build_ms = report.total_time().as_secs_f64() * 1e3;
     let bvh = report.bvh;
     let start = Instant::now();

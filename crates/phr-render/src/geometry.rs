@@ -26,9 +26,11 @@
 
 use crate::scene::{Scene, SphereObject};
 use glam::{Affine3A, Vec3};
+use phr_bvh::builder::BuildReport;
 use phr_bvh::instance::{Instance, TopLevel};
 use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
-use phr_bvh::{closest_hit_counted, Aabb, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
+use phr_bvh::{closest_hit_counted, Aabb, Builder, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
+use std::borrow::Cow;
 
 /// A closest hit: distance, primitive, and barycentrics for triangles.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -185,10 +187,16 @@ impl Geometry {
         self.boxes = boxes;
     }
 
-    /// Builds the BVH with `build` (any of phr-bvh's builders) over the current boxes.
-    pub fn build(&mut self, build: impl FnOnce(&[Aabb]) -> Bvh) {
-        let bvh = build(&self.boxes);
-        self.set_bvh(bvh);
+    /// Builds one BVH over the whole scene with `builder` and sets it ([`Geometry::set_bvh`]).
+    pub fn build(&mut self, builder: &Builder) {
+        let report = self.build_report(builder);
+        self.set_bvh(report.bvh);
+    }
+
+    /// A BVH over the whole scene by `builder`, with its timings, from the current boxes (and
+    /// the triangles, which the SBVH clips); not set.
+    pub fn build_report(&self, builder: &Builder) -> BuildReport {
+        builder.build_timed_with_triangles(&self.boxes, &self.triangles)
     }
 
     /// Sets one BVH over the whole scene (built over [`Geometry::boxes`] of the current
@@ -208,11 +216,11 @@ impl Geometry {
         self.set_part_bvh(0, bvh)
     }
 
-    /// Cuts the primitives into parts, each with its own tree built by `build` over its boxes
-    /// (local indices), placed in the world as they are until [`Geometry::place`] moves them.
-    /// Part `k` is `groups[k]`; groups must be non-empty and must not share primitives;
+    /// Cuts the primitives into parts, each with its own tree built by `builder` over its
+    /// boxes (local indices), placed in the world as they are until [`Geometry::place`] moves
+    /// them. Part `k` is `groups[k]`; groups must be non-empty and must not share primitives;
     /// primitives in none of them are left out.
-    pub fn split(&mut self, groups: Vec<Vec<u32>>, build: impl Fn(&[Aabb]) -> Bvh) {
+    pub fn split(&mut self, groups: Vec<Vec<u32>>, builder: &Builder) {
         assert!(!groups.is_empty() && groups.iter().all(|g| !g.is_empty()), "parts must not be empty");
         self.prim_part = vec![u32::MAX; self.prim_count()];
         self.parts = Vec::with_capacity(groups.len());
@@ -224,7 +232,7 @@ impl Geometry {
             }
             self.parts.push(Part { prims: Some(prims), ..Part::default() });
             let boxes = self.part_boxes(k);
-            let bvh = build(&boxes);
+            let bvh = builder.build_with_triangles(&boxes, &self.part_triangles(k));
             self.set_part_bvh(k, bvh);
         }
         self.place(&[]);
@@ -255,6 +263,18 @@ impl Geometry {
             self.boxes[p as usize] = *b;
         }
         boxes
+    }
+
+    /// The triangles of part `k`, in its order: the first primitives of
+    /// [`Geometry::part_boxes`] (the spheres come after them).
+    pub fn part_triangles(&self, k: usize) -> Cow<'_, [[Vec3; 3]]> {
+        match &self.parts[k].prims {
+            None => Cow::Borrowed(&self.triangles),
+            Some(prims) => {
+                let n = self.triangles.len() as u32;
+                Cow::Owned(prims.iter().take_while(|&&p| p < n).map(|&p| self.triangles[p as usize]).collect())
+            }
+        }
     }
 
     /// Sets part `k`'s tree, built over [`Geometry::part_boxes`] (its primitives numbered

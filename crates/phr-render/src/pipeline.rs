@@ -352,7 +352,7 @@ impl FramePipeline {
             }
             builder => {
                 let build_start = Instant::now();
-                let bvh = builder.build(boxes);
+                let bvh = builder.build_with_triangles(boxes, &self.geometry.triangles);
                 report.build_ms = ms_since(build_start);
                 report.wide_ms = self.geometry.set_bvh(bvh).as_secs_f64() * 1e3;
                 self.build_cost = 0;
@@ -389,7 +389,7 @@ impl FramePipeline {
                     self.build_cost = timings.build_cost;
                     bvh
                 }
-                _ => builder.build(&boxes),
+                _ => builder.build_with_triangles(&boxes, &self.geometry.part_triangles(d)),
             };
             report.build_ms += ms_since(build_start) - report.refit_ms;
             report.wide_ms = self.geometry.set_part_bvh(d, bvh).as_secs_f64() * 1e3;
@@ -440,10 +440,10 @@ impl FramePipeline {
             rigid.into_iter().filter_map(|k| Some((part(objects[k].prims.clone())?, k))).collect();
         if objects.is_empty() || groups.is_empty() {
             // Nothing moves (or there is nothing): one tree, no top level to pass through.
-            self.geometry.build(|boxes| self.settings.builder.build(boxes));
+            self.geometry.build(&self.settings.builder);
         } else {
             let builder = self.settings.builder;
-            self.geometry.split(groups, |boxes| builder.build(boxes));
+            self.geometry.split(groups, &builder);
         }
         self.sah = 0.0;
         self.build_cost = 0;

@@ -29,7 +29,7 @@ fn render_with(scene: &Scene, threads: usize, seed: u64, builder: Builder, nee: 
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     pool.install(|| {
         let mut geometry = Geometry::new(scene);
-        geometry.build(|boxes| builder.build(boxes));
+        geometry.build(&builder);
         let lights = nee.then(|| LightSet::new(&geometry, &scene.materials));
         assert!(lights.as_ref().is_none_or(|l| !l.is_empty()), "no emissive triangles to sample");
         let view = scene.view(None).expect("default view");
@@ -75,8 +75,10 @@ fn same_seed_same_image_for_any_thread_count() {
 fn every_builder_gives_the_same_image() {
     let scene = builtin::cornell_knot();
     let (reference, _) = render(&scene, 2, 3);
-    let mut builders: Vec<Builder> =
-        ["phr-fast", "phr-hq", "phr:0.4,7", "sweep-sah", "binned-sah"].iter().map(|s| s.parse().unwrap()).collect();
+    let mut builders: Vec<Builder> = ["phr-fast", "phr-hq", "phr:0.4,7", "sweep-sah", "binned-sah", "sbvh"]
+        .iter()
+        .map(|s| s.parse().unwrap())
+        .collect();
     builders.extend([4, 8, 16].map(|k| Builder::PHR_HQ.with_branching(k).unwrap()));
     for builder in builders {
         let (image, _) = render_with(&scene, 2, 3, builder, false);

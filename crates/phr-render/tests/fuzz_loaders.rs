@@ -88,7 +88,7 @@ fn scene_target(bytes: &[u8]) {
     let text = String::from_utf8_lossy(bytes);
     let Ok(scene) = parse_scene(&text, &seeds_dir().join("scene.json")) else { return };
     let mut geometry = Geometry::new(&scene);
-    geometry.build(|b| Builder::PHR_FAST.build(b));
+    geometry.build(&Builder::PHR_FAST);
     let view = scene.view(None).unwrap();
     let settings = RenderSettings { width: 4, height: 4, spp: 1, max_depth: 3 };
     let (pixels, _) = Renderer::new(&scene, &geometry, &view, &settings, None).render_frame(0);

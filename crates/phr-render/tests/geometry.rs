@@ -118,7 +118,7 @@ fn check_against_brute_force(scene: &Scene, rays: &[Ray]) -> (usize, usize) {
     let mut geometry = Geometry::new(scene);
     let (mut hits, mut ties) = (0, 0);
     for builder in builders() {
-        geometry.build(|b| builder.build(b));
+        geometry.build(&builder);
         for (i, ray) in rays.iter().enumerate() {
             let expected = brute_force(&geometry.triangles, &geometry.spheres, ray);
             let got = geometry.intersect(ray);
@@ -201,7 +201,7 @@ fn same_surface(geometry: &Geometry, a: usize, b: usize) -> bool {
 fn surface_points_lie_on_the_primitive_with_the_documented_normal_side_and_offset() {
     let scene = scene(100, 40, 2);
     let mut geometry = Geometry::new(&scene);
-    geometry.build(|b| Builder::default().build(b));
+    geometry.build(&Builder::default());
     let n_tris = geometry.triangles.len();
     let (mut checked, mut fronts, mut backs) = (0, 0, 0);
     for ray in rays(4000, 8) {

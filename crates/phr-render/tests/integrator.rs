@@ -31,7 +31,7 @@ const SIZE: u32 = 32;
 /// samples and the standard error of that mean.
 fn render(scene: &Scene, view: &CameraDesc, max_depth: u32, nee: bool, frames: u32) -> ([f64; 3], [f64; 3]) {
     let mut geometry = Geometry::new(scene);
-    geometry.build(|b| Builder::default().build(b));
+    geometry.build(&Builder::default());
     let lights = nee.then(|| LightSet::new(&geometry, &scene.materials));
     let settings = RenderSettings { width: SIZE, height: SIZE, spp: frames, max_depth };
     let renderer = Renderer::new(scene, &geometry, view, &settings, lights.as_ref())

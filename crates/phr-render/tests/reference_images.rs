@@ -91,7 +91,7 @@ fn check_with(reference: &Reference, spp: u32, nee: bool) {
     assert!(scene_file.is_file(), "missing {} (shared/ must sit next to the repository)", scene_file.display());
     let scene = load_scene(scene_file).unwrap();
     let mut geometry = Geometry::new(&scene);
-    geometry.build(|b| Builder::default().build(b));
+    geometry.build(&Builder::default());
     let lights = nee.then(|| LightSet::new(&geometry, &scene.materials));
     if nee {
         assert!(!lights.as_ref().unwrap().is_empty(), "{name} has no emissive triangles to sample");

@@ -118,7 +118,7 @@ fn check_scene(file: &Path, rays: usize, seed: u64) -> (usize, usize) {
     });
     let mut geometry = Geometry::new(&scene);
     assert_eq!(geometry.triangles, tris);
-    geometry.build(|b| builder.build(b));
+    geometry.build(&builder);
     validate(geometry.bvh(), &geometry.boxes, builder.max_leaf_size())
         .unwrap_or_else(|e| panic!("{name}: invalid geometry tree: {e}"));
 

@@ -199,7 +199,7 @@ fn placed_parts_equal_brute_force() {
     let n = g.triangles.len() as u32;
     // Triangles in three parts, the two spheres in a fourth.
     let groups = vec![(0..2).collect(), (2..9).collect(), (9..n).collect(), vec![n, n + 1]];
-    g.split(groups, |boxes| Builder::PHR_HQ.build(boxes));
+    g.split(groups, &Builder::PHR_HQ);
     assert_eq!(g.part_count(), 4);
     let maps = [
         Affine3A::from_scale_rotation_translation(Vec3::new(1.5, 0.5, 2.0), Quat::from_rotation_y(0.8), Vec3::X),

@@ -108,9 +108,10 @@ impl<const N: usize> Variant<N>
 where
     Lanes<N>: Width<N>,
 {
-    fn new(bvh: &Bvh, tris: &[[Vec3; 3]], boxes: &[Aabb], level: SimdLevel) -> Self {
+    fn new(bvh: &Bvh, tris: &[[Vec3; 3]], boxes: &[Aabb], level: SimdLevel, split: bool) -> Self {
         let mut wide = WideBvh::<N>::from_bvh(bvh);
-        wide.validate(boxes).unwrap_or_else(|e| panic!("wide-{N}: {e}"));
+        let valid = if split { wide.validate_split(boxes) } else { wide.validate(boxes) };
+        valid.unwrap_or_else(|e| panic!("wide-{N}: {e}"));
         let mut packed = PackedTriangles::new(&wide.prim_indices, tris);
         wide.set_simd(level);
         packed.set_simd(level);
@@ -130,11 +131,11 @@ fn check_scene(file: &Path, builder: Builder, random: usize, brute_sample: usize
     let scene = load_scene(file).unwrap_or_else(|e| panic!("{name}: {e}"));
     let mut geometry = Geometry::new(&scene);
     assert!(geometry.spheres.is_empty());
-    geometry.build(|b| builder.build(b));
+    geometry.build(&builder);
     let tris = geometry.triangles.clone();
     let boxes = geometry.boxes.clone();
     let bvh = geometry.bvh().clone();
-    phr_bvh::validate(&bvh, &boxes, builder.max_leaf_size()).unwrap_or_else(|e| panic!("{name}, {builder}: {e}"));
+    builder.validate(&bvh, &boxes).unwrap_or_else(|e| panic!("{name}, {builder}: {e}"));
 
     // Rays: random, primary (48² of the framing view), one diffuse bounce per primary hit.
     let mut rng = Rng::new(seed);
@@ -165,11 +166,11 @@ fn check_scene(file: &Path, builder: Builder, random: usize, brute_sample: usize
     rays.extend(primary);
     rays.extend(bounces);
 
-    let simd = SimdLevel::detect();
-    let w4 = Variant::<4>::new(&bvh, &tris, &boxes, simd);
-    let w8 = Variant::<8>::new(&bvh, &tris, &boxes, simd);
-    let w4s = Variant::<4>::new(&bvh, &tris, &boxes, SimdLevel::Scalar);
-    let w8s = Variant::<8>::new(&bvh, &tris, &boxes, SimdLevel::Scalar);
+    let (simd, split) = (SimdLevel::detect(), builder.splits_primitives());
+    let w4 = Variant::<4>::new(&bvh, &tris, &boxes, simd, split);
+    let w8 = Variant::<8>::new(&bvh, &tris, &boxes, simd, split);
+    let w4s = Variant::<4>::new(&bvh, &tris, &boxes, SimdLevel::Scalar, split);
+    let w8s = Variant::<8>::new(&bvh, &tris, &boxes, SimdLevel::Scalar, split);
     let results: Vec<(usize, usize)> = rays
         .par_iter()
         .enumerate()
@@ -227,6 +228,13 @@ fn wide_matches_reference_on_bunny() {
 fn wide_matches_reference_on_sponza() {
     // A 4-ary PHR tree: the collapse regroups its nodes.
     check("sponza/sponza.obj", Builder::PHR_HQ.with_branching(4).unwrap(), 2000, 300, 2);
+}
+
+/// Spatial splits: triangles cut into parts in several leaves, each leaf box holding only its
+/// part (with the triangle test's margin).
+#[test]
+fn wide_matches_reference_on_sponza_from_the_sbvh() {
+    check("sponza/sponza.obj", "sbvh".parse().unwrap(), 2000, 300, 8);
 }
 
 #[test]

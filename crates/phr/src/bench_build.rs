@@ -29,7 +29,7 @@ pub struct BenchBuildArgs {
     #[arg(long, default_value_t = 512)]
     pub res: u32,
     /// Builders to compare.
-    #[arg(long, value_delimiter = ',', default_value = "lbvh,phr-fast,phr-hq,binned-sah,sweep-sah")]
+    #[arg(long, value_delimiter = ',', default_value = "lbvh,phr-fast,phr-hq,binned-sah,sweep-sah,sbvh")]
     pub builders: Vec<Builder>,
     /// Branching factor for the PHR builders (2, 4, 8 or 16).
     #[arg(long, default_value_t = 2)]
@@ -60,7 +60,7 @@ pub fn run(args: &BenchBuildArgs) -> Result<()> {
     for name in meshes {
         let (mut geometry, scene) = open_mesh(&dir, name)?;
         let camera = Camera::new(&scene.framing_camera(), args.res, args.res);
-        geometry.build(|b| Builder::default().build(b));
+        geometry.build(&Builder::default());
         let rays = RaySet::new(&geometry, &camera, args.res);
         for &threads in &args.threads {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;

@@ -3,7 +3,7 @@
 use crate::scene_arg::{open_scene, BUILTIN};
 use anyhow::Result;
 use clap::Args;
-use phr_bvh::{sah_cost, tree_stats, validate, Builder, SahConstants};
+use phr_bvh::{sah_cost, tree_stats, Builder, SahConstants};
 use phr_render::geometry::Geometry;
 use std::time::Instant;
 
@@ -13,7 +13,7 @@ pub struct InfoArgs {
     /// scene of scenes/suite by name (sponza, dragon, ...).
     #[arg(default_value = BUILTIN)]
     pub scene: String,
-    /// BVH builder: lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah, binned-sah.
+    /// BVH builder: lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah, binned-sah, sbvh.
     #[arg(long, default_value = "lbvh")]
     pub builder: Builder,
     /// Children per node (PHR builders: 2, 4, 8 or 16).
@@ -27,7 +27,7 @@ pub fn run(args: &InfoArgs) -> Result<()> {
     let load_ms = load_start.elapsed().as_secs_f64() * 1e3;
     let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;
     let mut geometry = Geometry::new(&scene);
-    let report = builder.build_timed(&geometry.boxes);
+    let report = geometry.build_report(&builder);
     let build = crate::render::describe_build(&builder, &report);
     geometry.set_bvh(report.bvh);
     let b = scene.bounds();
@@ -68,7 +68,7 @@ pub fn run(args: &InfoArgs) -> Result<()> {
         per_triangle(mem.total()),
         per_triangle(mem.tree + mem.wide + mem.triangles)
     );
-    match validate(geometry.bvh(), &geometry.boxes, builder.max_leaf_size()) {
+    match builder.validate(geometry.bvh(), &geometry.boxes) {
         Ok(()) => println!("invariants  ok"),
         Err(e) => {
             println!("invariants  BROKEN: {e}");

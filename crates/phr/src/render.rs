@@ -36,8 +36,9 @@ pub struct RenderArgs {
     pub max_depth: Option<u32>,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// BVH builder: lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah, binned-sah.
-    #[arg(long, default_value = "lbvh")]
+    /// BVH builder: lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah, binned-sah, sbvh (the
+    /// default: spatial splits, the tree that traces fastest; a static render builds it once).
+    #[arg(long, default_value = "sbvh")]
     pub builder: Builder,
     /// Children per node (PHR builders: 2, 4, 8 or 16).
     #[arg(long, default_value_t = 2)]
@@ -74,7 +75,7 @@ impl Default for RenderArgs {
             spp: None,
             max_depth: None,
             seed: 0,
-            builder: Builder::default(),
+            builder: Builder::Sbvh(Default::default()),
             branching: 2,
             out: "render.png".into(),
             linear: None,
@@ -127,7 +128,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
 
     let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;
     let mut geometry = Geometry::new(&scene);
-    let report = builder.build_timed(&geometry.boxes);
+    let report = geometry.build_report(&builder);
     let build = describe_build(&builder, &report);
     geometry.set_bvh(report.bvh);
     let lights = args.nee.then(|| LightSet::new(&geometry, &scene.materials));

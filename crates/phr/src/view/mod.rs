@@ -39,7 +39,7 @@ pub struct ViewArgs {
     width: u32,
     #[arg(long, default_value_t = 256)]
     height: u32,
-    /// lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah or binned-sah.
+    /// lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah, binned-sah or sbvh.
     #[arg(long, default_value = "phr-fast")]
     builder: Builder,
     /// Children per node for PHR builders (2 to 16).
