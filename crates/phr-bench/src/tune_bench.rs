@@ -163,7 +163,7 @@ fn frame_ms(builder: Builder, scene: &Scene, geometry: &mut Geometry, view: &Cam
     let mut builds: Vec<(f64, phr_bvh::Bvh)> = (0..3)
         .map(|_| {
             let start = Instant::now();
-            let bvh = builder.build(&geometry.boxes);
+            let bvh = geometry.build_report(&builder).bvh;
             (start.elapsed().as_secs_f64() * 1e3, bvh)
         })
         .collect();

@@ -91,7 +91,7 @@ impl SceneCtx<'_> {
         let (mut aux, mut build, mut total) = (Vec::new(), Vec::new(), Vec::new());
         let mut last = None;
         for _ in 0..self.repeats {
-            let r = builder.build_timed(&self.geometry.boxes);
+            let r = self.geometry.build_report(builder);
             aux.push(r.aux_time.as_secs_f64() * 1e3);
             build.push(r.build_time.as_secs_f64() * 1e3);
             total.push(r.total_time().as_secs_f64() * 1e3);

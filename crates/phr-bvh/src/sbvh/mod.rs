@@ -39,6 +39,8 @@ const PARALLEL_GRAIN: usize = 1 << 12;
 /// Above this many references a node's binning and partition run in parallel.
 const PARALLEL_BINNING: usize = 1 << 14;
 pub const MAX_BINS: usize = 32;
+/// The largest [`SbvhOptions::max_references`] honoured.
+pub const MAX_REFERENCES: f32 = 4.0;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SbvhOptions {
@@ -49,7 +51,8 @@ pub struct SbvhOptions {
     /// Spatial splits are tried where the best object split's children overlap by more than
     /// this fraction of the root's surface area (Stich et al.'s α; 0: everywhere).
     pub min_overlap: f32,
-    /// The references may number up to this many times the primitives (1: no spatial split).
+    /// The references may number up to this many times the primitives (1: no spatial split;
+    /// at most [`MAX_REFERENCES`]).
     pub max_references: f32,
     pub leaf: LeafPolicy,
 }
@@ -69,7 +72,8 @@ pub fn build_sbvh(boxes: &[Aabb], triangles: &[[Vec3; 3]], options: &SbvhOptions
     if boxes.is_empty() {
         return Bvh::default();
     }
-    assert!(boxes.len() < u32::MAX as usize / 2, "the SBVH builder takes fewer than 2^31 primitives");
+    // References (up to MAX_REFERENCES × the primitives) are counted in u32.
+    assert!(boxes.len() < 1 << 29, "the SBVH builder takes fewer than 2^29 primitives");
     let refs: Vec<Ref> = boxes.par_iter().enumerate().map(|(i, &b)| Ref { bounds: b, prim: i as u32 }).collect();
     let bounds = bounds_of(&refs);
     let ctx = Ctx {
@@ -79,7 +83,8 @@ pub fn build_sbvh(boxes: &[Aabb], triangles: &[[Vec3; 3]], options: &SbvhOptions
         min_overlap_area: options.min_overlap * bounds.surface_area(),
         leaf: options.leaf,
     };
-    let budget = ((options.max_references - 1.0).max(0.0) as f64 * boxes.len() as f64) as usize;
+    let extra = options.max_references.clamp(1.0, MAX_REFERENCES) - 1.0;
+    let budget = (extra as f64 * boxes.len() as f64) as usize;
     assemble(ctx.build(refs, bounds, 0, budget))
 }
 
@@ -254,9 +259,10 @@ impl Ctx<'_> {
             return Err(refs);
         }
         if let Some(s) = spatial.filter(|_| spatial_cost < object_cost) {
-            match self.spatial_partition(refs, &s) {
+            match self.spatial_partition(refs, &s, budget) {
                 Ok(c) => return Ok(c),
-                // Every straddler went to one side: use the object split.
+                // Every straddler went to one side, or the cuts overran the budget: use the
+                // object split.
                 Err(back) => {
                     return match object {
                         Some(o) => Ok(partition(back, |r| binner.bin(r, o.axis) < o.bin)),
@@ -360,7 +366,7 @@ impl Ctx<'_> {
                 left = left.union(slabs[b - 1].bounds);
                 enters += slabs[b - 1].enter;
                 let (right_box, exits) = right[b];
-                if enters == 0 || exits == 0 || (enters + exits - n) as usize > budget {
+                if enters == 0 || exits == 0 || (enters + exits).saturating_sub(n) as usize > budget {
                     continue;
                 }
                 let cost = left.surface_area() * enters as f32 + right_box.surface_area() * exits as f32;
@@ -408,8 +414,9 @@ impl Ctx<'_> {
 
     /// Sends each reference to its side of the plane; a straddling one is cut in two, or kept
     /// whole on the side where that costs less. Fails (handing the references back) when one
-    /// side would be empty.
-    fn spatial_partition(&self, refs: Vec<Ref>, s: &SpatialSplit) -> Result<Children, Vec<Ref>> {
+    /// side would be empty, or when the cuts exceed `budget` (the slab counts estimate them
+    /// from the references' boxes; one rounding into the slab beyond the plane escapes them).
+    fn spatial_partition(&self, refs: Vec<Ref>, s: &SpatialSplit, budget: usize) -> Result<Children, Vec<Ref>> {
         let (al, ar) = (s.left.surface_area(), s.right.surface_area());
         let (nl, nr) = (s.left_count as f32, s.right_count as f32);
         let split_cost = al * nl + ar * nr;
@@ -445,7 +452,7 @@ impl Ctx<'_> {
         };
         let left: Vec<Ref> = placed.iter().filter_map(|p| p.0).collect();
         let right: Vec<Ref> = placed.iter().filter_map(|p| p.1).collect();
-        if left.is_empty() || right.is_empty() {
+        if left.is_empty() || right.is_empty() || left.len() + right.len() > refs.len() + budget {
             return Err(refs);
         }
         Ok(Children { left_bounds: bounds_of(&left), right_bounds: bounds_of(&right), left, right })
