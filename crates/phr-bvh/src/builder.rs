@@ -66,8 +66,8 @@ impl Builder {
     }
 
     /// [`Builder::build`] for primitives of which the first `triangles.len()` are these
-    /// triangles (with `boxes[..triangles.len()]` their boxes): the SBVH clips them exactly
-    /// (it cuts the others as boxes); the other builders need the boxes only.
+    /// triangles (with `boxes[..triangles.len()]` their boxes): the SBVH may cut them (never
+    /// the others); the other builders need the boxes only.
     pub fn build_with_triangles(&self, boxes: &[Aabb], triangles: &[[Vec3; 3]]) -> Bvh {
         self.build_timed_with_triangles(boxes, triangles).bvh
     }

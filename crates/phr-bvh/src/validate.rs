@@ -32,8 +32,9 @@ fn check(bvh: &Bvh, boxes: &[Aabb], max_leaf_size: u32, split: bool) -> Result<(
     if bvh.nodes.is_empty() {
         return Err(format!("{} primitives but no nodes", boxes.len()));
     }
-    if bvh.prim_indices.len() != boxes.len() && !(split && bvh.prim_indices.len() > boxes.len()) {
-        return Err(format!("{} primitive references for {} primitives", bvh.prim_indices.len(), boxes.len()));
+    let references = bvh.prim_indices.len();
+    if if split { references < boxes.len() } else { references != boxes.len() } {
+        return Err(format!("{references} primitive references for {} primitives", boxes.len()));
     }
     let mut visited = vec![false; bvh.nodes.len()];
     let mut prim_seen = vec![false; boxes.len()];

@@ -104,6 +104,12 @@ struct Children {
     right_bounds: Aabb,
 }
 
+impl Children {
+    fn new(left: Vec<Ref>, right: Vec<Ref>) -> Self {
+        Children { left_bounds: bounds_of(&left), right_bounds: bounds_of(&right), left, right }
+    }
+}
+
 /// The best object split of a node.
 struct ObjectSplit {
     cost: f32,
@@ -118,10 +124,9 @@ struct ObjectSplit {
 struct SpatialSplit {
     cost: f32,
     axis: usize,
-    /// The slabs of `axis`, and the plane (`planes.plane(plane)`, at `pos`).
+    /// The slabs of `axis`, and the plane (at `planes.plane(plane)`).
     planes: Planes,
     plane: usize,
-    pos: f32,
     left: Aabb,
     right: Aabb,
     left_count: u32,
@@ -163,12 +168,7 @@ struct Slab {
 const EMPTY_SLAB: Slab = Slab { bounds: Aabb::EMPTY, enter: 0, exit: 0 };
 
 fn bounds_of(refs: &[Ref]) -> Aabb {
-    let fold = |chunk: &[Ref]| chunk.iter().fold(Aabb::EMPTY, |b, r| b.union(r.bounds));
-    if refs.len() > PARALLEL_BINNING {
-        refs.par_chunks(PARALLEL_BINNING / 4).map(fold).reduce(|| Aabb::EMPTY, Aabb::union)
-    } else {
-        fold(refs)
-    }
+    fold_chunks(refs, |c| c.iter().fold(Aabb::EMPTY, |b, r| b.union(r.bounds)), Aabb::union)
 }
 
 /// Runs `f` over chunks of `refs` (in parallel when large) and merges the results in order.
@@ -223,7 +223,7 @@ impl Ctx<'_> {
     }
 
     /// Splits a node, or hands its references back for a leaf.
-    fn decide(&self, refs: Vec<Ref>, bounds: Aabb, depth: u32, budget: usize) -> Result<Children, Vec<Ref>> {
+    fn decide(&self, mut refs: Vec<Ref>, bounds: Aabb, depth: u32, budget: usize) -> Result<Children, Vec<Ref>> {
         let n = refs.len();
         if n <= 1 {
             return Err(refs);
@@ -242,13 +242,9 @@ impl Ctx<'_> {
             last: nb - 1,
         };
         let object = self.best_object_split(&refs, &binner, nb);
-        let spatial = match &object {
-            Some(o) if budget > 0 && o.left.overlap(o.right).surface_area() > self.min_overlap_area => {
-                self.best_spatial_split(&refs, bounds, budget)
-            }
-            None if budget > 0 => self.best_spatial_split(&refs, bounds, budget),
-            _ => None,
-        };
+        let overlapping =
+            object.as_ref().is_none_or(|o| o.left.overlap(o.right).surface_area() > self.min_overlap_area);
+        let spatial = (budget > 0 && overlapping).then(|| self.best_spatial_split(&refs, bounds, budget)).flatten();
         let object_cost = object.as_ref().map_or(f32::INFINITY, |o| o.cost);
         let spatial_cost = spatial.as_ref().map_or(f32::INFINITY, |s| s.cost);
         let best = object_cost.min(spatial_cost);
@@ -261,18 +257,15 @@ impl Ctx<'_> {
         if let Some(s) = spatial.filter(|_| spatial_cost < object_cost) {
             match self.spatial_partition(refs, &s, budget) {
                 Ok(c) => return Ok(c),
-                // Every straddler went to one side, or the cuts overran the budget: use the
-                // object split.
-                Err(back) => {
-                    return match object {
-                        Some(o) => Ok(partition(back, |r| binner.bin(r, o.axis) < o.bin)),
-                        None => Ok(median_split(back, centres)),
-                    }
-                }
+                // Every straddler went to one side, or the cuts overran the budget: fall back
+                // to the object split.
+                Err(back) => refs = back,
             }
         }
-        let o = object.expect("finite cost");
-        Ok(partition(refs, |r| binner.bin(r, o.axis) < o.bin))
+        Ok(match object {
+            Some(o) => partition(refs, |r| binner.bin(r, o.axis) < o.bin),
+            None => median_split(refs, centres),
+        })
     }
 
     fn best_object_split(&self, refs: &[Ref], binner: &CentreBins, nb: usize) -> Option<ObjectSplit> {
@@ -376,7 +369,6 @@ impl Ctx<'_> {
                         axis,
                         planes,
                         plane: b,
-                        pos: planes.plane(b),
                         left,
                         right: right_box,
                         left_count: enters,
@@ -420,11 +412,12 @@ impl Ctx<'_> {
         let (al, ar) = (s.left.surface_area(), s.right.surface_area());
         let (nl, nr) = (s.left_count as f32, s.right_count as f32);
         let split_cost = al * nl + ar * nr;
+        let pos = s.planes.plane(s.plane);
         let place = |r: &Ref| -> (Option<Ref>, Option<Ref>) {
-            if r.bounds.max[s.axis] <= s.pos {
+            if r.bounds.max[s.axis] <= pos {
                 return (Some(*r), None);
             }
-            if r.bounds.min[s.axis] >= s.pos {
+            if r.bounds.min[s.axis] >= pos {
                 return (None, Some(*r));
             }
             if !self.prims.splittable(r) {
@@ -439,7 +432,7 @@ impl Ctx<'_> {
             if whole_right < split_cost {
                 return (None, Some(*r));
             }
-            match self.prims.split(r, s.axis, s.pos) {
+            match self.prims.split(r, s.axis, pos) {
                 (l, _) if l.is_empty() => (None, Some(*r)),
                 (_, h) if h.is_empty() => (Some(*r), None),
                 (l, h) => (Some(Ref { bounds: l, prim: r.prim }), Some(Ref { bounds: h, prim: r.prim })),
@@ -455,7 +448,7 @@ impl Ctx<'_> {
         if left.is_empty() || right.is_empty() || left.len() + right.len() > refs.len() + budget {
             return Err(refs);
         }
-        Ok(Children { left_bounds: bounds_of(&left), right_bounds: bounds_of(&right), left, right })
+        Ok(Children::new(left, right))
     }
 }
 
@@ -495,7 +488,7 @@ fn partition(refs: Vec<Ref>, goes_left: impl Fn(&Ref) -> bool + Sync) -> Childre
     } else {
         refs.into_iter().partition(|r| goes_left(r))
     };
-    Children { left_bounds: bounds_of(&left), right_bounds: bounds_of(&right), left, right }
+    Children::new(left, right)
 }
 
 /// The object median along the axis of largest centre extent (ties by index).
@@ -506,5 +499,5 @@ fn median_split(mut refs: Vec<Ref>, centres: Aabb) -> Children {
         a.bounds.center()[axis].total_cmp(&b.bounds.center()[axis]).then(a.prim.cmp(&b.prim))
     });
     let right = refs.split_off(k);
-    Children { left_bounds: bounds_of(&refs), right_bounds: bounds_of(&right), left: refs, right }
+    Children::new(refs, right)
 }

@@ -387,7 +387,7 @@ impl<const N: usize> WideBvh<N> {
             return if boxes.is_empty() { Ok(()) } else { Err(format!("{} primitives but no nodes", boxes.len())) };
         }
         let refs = self.prim_indices.iter().filter(|&&p| p != PAD).count();
-        if refs != boxes.len() && !(split && refs > boxes.len()) {
+        if if split { refs < boxes.len() } else { refs != boxes.len() } {
             return Err(format!("{refs} primitive references for {} primitives", boxes.len()));
         }
         let mut seen_node = vec![false; self.nodes.len()];
