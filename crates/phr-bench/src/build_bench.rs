@@ -11,13 +11,13 @@
 
 use crate::rays::RaySet;
 use crate::throughput::{mean_counts, throughput};
-use phr_bvh::phr::AuxTree;
-use phr_bvh::{sah_cost, Builder, Ray, SahConstants, TraversalStats};
-use phr_render::geometry::Geometry;
+use phr_bvh::phr::{build_phr_wide, AuxTree};
+use phr_bvh::{sah_cost, Builder, PackedTriangles, Ray, SahConstants, TraversalStats, WideBvh};
+use phr_render::geometry::{Geometry, WIDTH};
 use phr_render::output::write_atomically;
 use std::io::Write;
 use std::path::Path;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// One builder on one mesh with one thread count.
 #[derive(Clone, Debug)]
@@ -33,6 +33,9 @@ pub struct BuildRow {
     pub total_ms: f64,
     /// The collapse to the renderer's 8-wide BVH and the triangle packing.
     pub wide_ms: f64,
+    /// PHR builders: PHR straight to the 8-wide BVH (no binary tree, no collapse) and the
+    /// triangle packing; what `build_ms + wide_ms` become with the direct output.
+    pub direct_ms: Option<f64>,
     pub sah_11: f64,
     pub sah_21: f64,
     /// PHR's `Σ |cut|` (PHR builders only).
@@ -64,14 +67,26 @@ pub fn measure_builder(
     let ms = |d: Duration| d.as_secs_f64() * 1e3;
     let (aux_ms, build_ms, total_ms) = (ms(report.aux_time), ms(report.build_time), ms(report.total_time()));
     let build_cost = report.phr.map(|s| s.build_cost);
-    let refit_ms = matches!(builder, Builder::Phr(_)).then(|| {
-        let mut aux = AuxTree::build(&geometry.boxes);
-        median_ms(repeats, || {
-            let start = std::time::Instant::now();
-            aux.refit(&geometry.boxes);
-            start.elapsed()
-        })
-    });
+    let (refit_ms, direct_ms) = match builder {
+        Builder::Phr(options) => {
+            let mut aux = AuxTree::build(&geometry.boxes);
+            let refit = median_ms(repeats, || {
+                let start = Instant::now();
+                aux.refit(&geometry.boxes);
+                start.elapsed()
+            });
+            // PHR straight to the wide tree, then the packing, into the previous build's memory.
+            let (mut wide, mut packed) = (WideBvh::<WIDTH>::default(), PackedTriangles::default());
+            let direct = median_ms(repeats, || {
+                let start = Instant::now();
+                build_phr_wide(&aux, options, &mut wide);
+                packed.repack(&wide.prim_indices, &geometry.triangles);
+                start.elapsed()
+            });
+            (Some(refit), Some(direct))
+        }
+        _ => (None, None),
+    };
     // Into the previous build's memory, as a dynamic scene does every frame.
     let wide_ms = median_ms(repeats, || geometry.set_bvh(report.bvh.clone()));
     geometry.set_bvh(report.bvh);
@@ -92,6 +107,7 @@ pub fn measure_builder(
         build_ms,
         total_ms,
         wide_ms,
+        direct_ms,
         sah_11: sah_cost(geometry.bvh(), SahConstants::UNIT),
         sah_21: sah_cost(geometry.bvh(), SahConstants::THESIS),
         build_cost,
@@ -113,7 +129,7 @@ fn median_ms(repeats: usize, mut run: impl FnMut() -> Duration) -> f64 {
 pub type Cells = [String; COLUMNS.len()];
 
 /// The columns: CSV name, console heading, console width.
-pub const COLUMNS: [(&str, &str, usize); 17] = [
+pub const COLUMNS: [(&str, &str, usize); 18] = [
     ("mesh", "mesh", 36),
     ("triangles", "tris", 8),
     ("threads", "thr", 3),
@@ -124,6 +140,7 @@ pub const COLUMNS: [(&str, &str, usize); 17] = [
     ("total_ms", "total ms", 9),
     ("wide_ms", "wide ms", 8),
     ("renderable_ms", "ready ms", 9),
+    ("direct_to_wide_ms", "direct ms", 9),
     ("sah_cost_1_1", "SAH11", 7),
     ("sah_cost_2_1", "SAH21", 7),
     ("build_cost", "Σ|cut|", 9),
@@ -147,6 +164,7 @@ impl BuildRow {
             format!("{:.3}", self.total_ms),
             format!("{:.3}", self.wide_ms),
             format!("{:.3}", self.total_ms + self.wide_ms),
+            self.direct_ms.map_or(String::new(), |ms| format!("{ms:.3}")),
             format!("{:.4}", self.sah_11),
             format!("{:.4}", self.sah_21),
             self.build_cost.map_or(String::new(), |c| c.to_string()),

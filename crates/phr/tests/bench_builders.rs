@@ -46,6 +46,9 @@ fn bench_build_measures_every_builder_and_thread_count() {
         let total = csv.num(r, "total_ms");
         assert!((total - csv.num(r, "aux_ms") - csv.num(r, "build_ms")).abs() < 0.01, "{builder}: total = aux + build");
         assert_eq!(csv.opt(r, "refit_ms").is_some(), builder.starts_with("phr"), "{builder}: a refit only for PHR");
+        let direct = csv.opt(r, "direct_to_wide_ms");
+        assert_eq!(direct.is_some(), builder.starts_with("phr"), "{builder}: a direct wide output only for PHR");
+        assert!(direct.is_none_or(|ms| ms > 0.0), "{builder}: direct {direct:?}");
         let (wide, ready) = (csv.num(r, "wide_ms"), csv.num(r, "renderable_ms"));
         assert!(wide > 0.0 && (ready - total - wide).abs() < 0.01, "{builder}: renderable = total + wide");
         assert!(csv.num(r, "sah_cost_2_1") > csv.num(r, "sah_cost_1_1"), "{builder}: traversal counts twice");

@@ -20,6 +20,7 @@
 pub mod aux_tree;
 pub mod cut;
 pub mod split;
+pub mod wide;
 
 use crate::aabb::Aabb;
 use crate::node::{Bvh, MAX_BRANCHING};
@@ -30,6 +31,7 @@ use cut::{cut_bounds, cut_prims, CutNode};
 use rayon::prelude::*;
 use split::{best_split, median_split, CutSplit, SplitScratch};
 use std::sync::atomic::{AtomicU64, Ordering};
+pub use wide::build_phr_wide;
 
 /// What a cut node's weight counts in the sweep.
 ///

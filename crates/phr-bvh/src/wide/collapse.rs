@@ -30,10 +30,11 @@
 //! Within a piece, wide nodes are stored depth-first, the children of a node consecutively;
 //! leaf primitives are renumbered in the order the leaves are written, so each leaf is a
 //! contiguous range of [`super::WideBvh::prim_indices`]. Each leaf starts at a multiple of
-//! [`CollapseOptions::leaf_align`] (the gaps hold [`PAD`]), so a leaf of up to 4 triangles is
+//! [`CollapseOptions::leaf_align`] (the gaps hold [`super::PAD`]), so a leaf of up to 4 triangles is
 //! one 4-lane block of the packed triangles.
 
-use super::{WideNode, PAD};
+use super::pieces::{assemble, start_leaf, WideBuilt, WidePiece};
+use super::WideNode;
 use crate::aabb::Aabb;
 use crate::node::Bvh;
 
@@ -234,30 +235,6 @@ struct Emit<'a> {
     align: usize,
 }
 
-/// Wide nodes and leaf primitives of one subtree, with local indices: its root is node 0,
-/// interior slots index `nodes`, leaf slots index `prims` (whose length is a multiple of the
-/// alignment, so the piece can be placed at any aligned offset). `bound` is the stack bound
-/// of the subtree, counted from the depth it was built at.
-struct WidePiece<const N: usize> {
-    nodes: Vec<WideNode<N>>,
-    prims: Vec<u32>,
-    bound: usize,
-}
-
-/// The result of collapsing a subtree: a piece, or (near the root, where subtrees are
-/// large) one wide node whose interior slots were collapsed as separate tasks.
-enum WideBuilt<const N: usize> {
-    Piece(WidePiece<N>),
-    Split {
-        /// The node, with its leaf slots indexing `leaf_prims` and interior slots unset.
-        node: WideNode<N>,
-        leaf_prims: Vec<u32>,
-        /// Interior slots and what fills them.
-        children: Vec<(usize, WideBuilt<N>)>,
-        bound: usize,
-    },
-}
-
 impl Emit<'_> {
     /// A bin that becomes a leaf: a source leaf, or a subtree small enough to merge.
     #[inline]
@@ -317,8 +294,7 @@ impl Emit<'_> {
     /// returns where they start and how many there are. A merged subtree of a tree with
     /// spatial splits may hold two parts of one primitive: it is written once.
     fn emit_leaf(&self, b: u32, out: &mut Vec<u32>, stack: &mut Vec<u32>) -> (u32, u32) {
-        out.resize(out.len().next_multiple_of(self.align), PAD);
-        let start = out.len();
+        let start = start_leaf(out, self.align);
         let bin = &self.bins[b as usize];
         if bin.is_leaf() {
             out.extend_from_slice(&self.src.prim_indices[bin.first as usize..(bin.first + bin.count) as usize]);
@@ -380,7 +356,7 @@ impl Emit<'_> {
     /// Collapses the subtree at `b` sequentially, depth first (children of a node stored
     /// consecutively).
     fn piece<const N: usize>(&self, b: u32, depth: usize) -> WidePiece<N> {
-        let mut piece = WidePiece { nodes: vec![WideNode::<N>::EMPTY], prims: Vec::new(), bound: 0 };
+        let mut piece = WidePiece::new();
         let mut stack = Vec::new();
         // (binary node whose children fill the wide node, wide node, stack depth above it)
         let mut work = vec![(b, 0usize, depth)];
@@ -400,97 +376,9 @@ impl Emit<'_> {
             work[pending..].reverse();
             piece.nodes[w] = node;
         }
-        piece.prims.resize(piece.prims.len().next_multiple_of(self.align), PAD);
+        start_leaf(&mut piece.prims, self.align);
         piece
     }
-}
-
-impl<const N: usize> WideBuilt<N> {
-    fn bound(&self) -> usize {
-        match self {
-            WideBuilt::Piece(p) => p.bound,
-            WideBuilt::Split { bound, .. } => *bound,
-        }
-    }
-}
-
-/// Where a piece goes in the output.
-struct Placement<'a, const N: usize> {
-    piece: &'a WidePiece<N>,
-    node_offset: usize,
-    prim_offset: usize,
-}
-
-/// Lays out the parallel top first (depth first), then every piece after it, and copies
-/// the pieces in parallel, relocating their indices. `nodes` and `prims` start empty.
-fn assemble<const N: usize>(root: &WideBuilt<N>, nodes: &mut Vec<WideNode<N>>, prims: &mut Vec<u32>, align: usize) {
-    // The top: (built, node index it fills). Pieces get their offsets in a second pass.
-    let mut stack = vec![(root, None::<(usize, usize)>)];
-    let mut pieces: Vec<(&WidePiece<N>, Option<(usize, usize)>)> = Vec::new();
-    while let Some((built, parent)) = stack.pop() {
-        match built {
-            WideBuilt::Piece(p) => pieces.push((p, parent)),
-            WideBuilt::Split { node, leaf_prims, children, .. } => {
-                let index = nodes.len();
-                if let Some((pn, slot)) = parent {
-                    nodes[pn].child[slot] = index as u32;
-                }
-                let mut node = *node;
-                let base = prims.len() as u32;
-                for s in 0..N {
-                    if node.count[s] > 0 {
-                        node.child[s] += base;
-                    }
-                }
-                prims.extend_from_slice(leaf_prims);
-                prims.resize(prims.len().next_multiple_of(align), PAD);
-                nodes.push(node);
-                for (slot, c) in children.iter().rev() {
-                    stack.push((c, Some((index, *slot))));
-                }
-            }
-        }
-    }
-    let (mut node_total, mut prim_total) = (nodes.len(), prims.len());
-    let mut placements = Vec::with_capacity(pieces.len());
-    for (p, parent) in &pieces {
-        if let Some((pn, slot)) = *parent {
-            nodes[pn].child[slot] = node_total as u32;
-        }
-        placements.push(Placement { piece: p, node_offset: node_total, prim_offset: prim_total });
-        node_total += p.nodes.len();
-        prim_total += p.prims.len();
-    }
-    let top = nodes.len();
-    let top_prims = prims.len();
-    nodes.resize(node_total, WideNode::<N>::EMPTY);
-    prims.resize(prim_total, PAD);
-    let (mut node_rest, mut prim_rest) = (&mut nodes[top..], &mut prims[top_prims..]);
-    let mut jobs = Vec::with_capacity(placements.len());
-    for p in &placements {
-        let (n, tail) = std::mem::take(&mut node_rest).split_at_mut(p.piece.nodes.len());
-        let (q, prim_tail) = std::mem::take(&mut prim_rest).split_at_mut(p.piece.prims.len());
-        jobs.push((p, n, q));
-        node_rest = tail;
-        prim_rest = prim_tail;
-    }
-    use rayon::prelude::*;
-    jobs.into_par_iter().for_each(|(p, out_nodes, out_prims)| {
-        for (out, node) in out_nodes.iter_mut().zip(&p.piece.nodes) {
-            let mut node = *node;
-            for s in 0..N {
-                // Leaf slots count primitives; interior ones index a node other than the
-                // piece's root (0), which is what empty slots hold.
-                if node.count[s] > 0 {
-                    node.child[s] += p.prim_offset as u32;
-                } else if node.child[s] != 0 {
-                    node.child[s] += p.node_offset as u32;
-                }
-            }
-            *out = node;
-        }
-        out_prims.copy_from_slice(&p.piece.prims);
-    });
 }
 
 /// Collapses `src` into `N`-wide nodes; returns the nodes, the primitive indices in leaf

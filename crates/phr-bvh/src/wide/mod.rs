@@ -71,6 +71,7 @@
 #[cfg(target_arch = "x86_64")]
 pub mod child_order;
 pub mod collapse;
+pub(crate) mod pieces;
 pub mod simd;
 mod traverse;
 pub mod triangles;
@@ -169,7 +170,7 @@ impl<const N: usize> WideNode<N> {
         )
     }
 
-    fn set_child_bounds(&mut self, i: usize, a: crate::Aabb) {
+    pub(crate) fn set_child_bounds(&mut self, i: usize, a: crate::Aabb) {
         let b = &mut self.bounds;
         (b[MIN_X][i], b[MIN_Y][i], b[MIN_Z][i]) = (a.min.x, a.min.y, a.min.z);
         (b[MAX_X][i], b[MAX_Y][i], b[MAX_Z][i]) = (a.max.x, a.max.y, a.max.z);
@@ -240,6 +241,12 @@ where
         let prims = std::mem::take(&mut self.prim_indices);
         let (nodes, prim_indices, stack_bound) = collapse::collapse::<N>(bvh, CollapseOptions::default(), nodes, prims);
         (self.nodes, self.prim_indices, self.stack_bound) = (nodes, prim_indices, stack_bound);
+    }
+
+    /// The bound of the traversal stack's depth the builder computed (along any root-to-node
+    /// path, the sum of `children - 1`).
+    pub fn stack_bound(&self) -> usize {
+        self.stack_bound
     }
 
     /// The kernel in use.

@@ -1,0 +1,142 @@
+//! Wide trees built in pieces, by the collapse ([`super::collapse`]) and by PHR's direct
+//! wide output ([`crate::phr::wide`]).
+//!
+//! Near the root, where subtrees are large, each wide node's interior slots are built as
+//! separate rayon tasks ([`WideBuilt::Split`]); below, one task builds a whole subtree depth
+//! first into a [`WidePiece`] with local indices. [`assemble`] lays the top out first and the
+//! pieces after it, in an order that does not depend on the thread count, and copies the
+//! pieces in parallel, relocating their indices.
+
+use super::{WideNode, PAD};
+
+impl<const N: usize> WidePiece<N> {
+    /// A piece whose root (node 0) is still to be filled.
+    pub fn new() -> Self {
+        WidePiece { nodes: vec![WideNode::<N>::EMPTY], prims: Vec::new(), bound: 0 }
+    }
+}
+
+/// Starts a leaf in `prims` at the next multiple of `align` (the gap holds [`PAD`]); returns
+/// where it starts.
+#[inline]
+pub(crate) fn start_leaf(prims: &mut Vec<u32>, align: usize) -> usize {
+    prims.resize(prims.len().next_multiple_of(align), PAD);
+    prims.len()
+}
+
+/// Wide nodes and leaf primitives of one subtree, with local indices: its root is node 0,
+/// interior slots index `nodes`, leaf slots index `prims` (whose length is a multiple of the
+/// alignment, so the piece can be placed at any aligned offset). `bound` is the stack bound
+/// of the subtree, counted from the depth it was built at.
+pub(crate) struct WidePiece<const N: usize> {
+    pub nodes: Vec<WideNode<N>>,
+    pub prims: Vec<u32>,
+    pub bound: usize,
+}
+
+/// A built subtree: a piece, or (near the root, where subtrees are large) one wide node
+/// whose interior slots were built as separate tasks.
+pub(crate) enum WideBuilt<const N: usize> {
+    Piece(WidePiece<N>),
+    Split {
+        /// The node, with its leaf slots indexing `leaf_prims` and interior slots unset.
+        node: WideNode<N>,
+        leaf_prims: Vec<u32>,
+        /// Interior slots and what fills them.
+        children: Vec<(usize, WideBuilt<N>)>,
+        bound: usize,
+    },
+}
+
+impl<const N: usize> WideBuilt<N> {
+    pub fn bound(&self) -> usize {
+        match self {
+            WideBuilt::Piece(p) => p.bound,
+            WideBuilt::Split { bound, .. } => *bound,
+        }
+    }
+}
+
+/// Where a piece goes in the output.
+struct Placement<'a, const N: usize> {
+    piece: &'a WidePiece<N>,
+    node_offset: usize,
+    prim_offset: usize,
+}
+
+/// Lays out the parallel top first (depth first), then every piece after it, and copies
+/// the pieces in parallel, relocating their indices. `nodes` and `prims` start empty.
+pub(crate) fn assemble<const N: usize>(
+    root: &WideBuilt<N>,
+    nodes: &mut Vec<WideNode<N>>,
+    prims: &mut Vec<u32>,
+    align: usize,
+) {
+    // The top: (built, node index it fills). Pieces get their offsets in a second pass.
+    let mut stack = vec![(root, None::<(usize, usize)>)];
+    let mut pieces: Vec<(&WidePiece<N>, Option<(usize, usize)>)> = Vec::new();
+    while let Some((built, parent)) = stack.pop() {
+        match built {
+            WideBuilt::Piece(p) => pieces.push((p, parent)),
+            WideBuilt::Split { node, leaf_prims, children, .. } => {
+                let index = nodes.len();
+                if let Some((pn, slot)) = parent {
+                    nodes[pn].child[slot] = index as u32;
+                }
+                let mut node = *node;
+                let base = prims.len() as u32;
+                for s in 0..N {
+                    if node.count[s] > 0 {
+                        node.child[s] += base;
+                    }
+                }
+                prims.extend_from_slice(leaf_prims);
+                prims.resize(prims.len().next_multiple_of(align), PAD);
+                nodes.push(node);
+                for (slot, c) in children.iter().rev() {
+                    stack.push((c, Some((index, *slot))));
+                }
+            }
+        }
+    }
+    let (mut node_total, mut prim_total) = (nodes.len(), prims.len());
+    let mut placements = Vec::with_capacity(pieces.len());
+    for (p, parent) in &pieces {
+        if let Some((pn, slot)) = *parent {
+            nodes[pn].child[slot] = node_total as u32;
+        }
+        placements.push(Placement { piece: p, node_offset: node_total, prim_offset: prim_total });
+        node_total += p.nodes.len();
+        prim_total += p.prims.len();
+    }
+    let top = nodes.len();
+    let top_prims = prims.len();
+    nodes.resize(node_total, WideNode::<N>::EMPTY);
+    prims.resize(prim_total, PAD);
+    let (mut node_rest, mut prim_rest) = (&mut nodes[top..], &mut prims[top_prims..]);
+    let mut jobs = Vec::with_capacity(placements.len());
+    for p in &placements {
+        let (n, tail) = std::mem::take(&mut node_rest).split_at_mut(p.piece.nodes.len());
+        let (q, prim_tail) = std::mem::take(&mut prim_rest).split_at_mut(p.piece.prims.len());
+        jobs.push((p, n, q));
+        node_rest = tail;
+        prim_rest = prim_tail;
+    }
+    use rayon::prelude::*;
+    jobs.into_par_iter().for_each(|(p, out_nodes, out_prims)| {
+        for (out, node) in out_nodes.iter_mut().zip(&p.piece.nodes) {
+            let mut node = *node;
+            for s in 0..N {
+                // Leaf slots count primitives; interior ones index a node other than the
+                // piece's root (0), which is what empty slots hold.
+                if node.count[s] > 0 {
+                    node.child[s] += p.prim_offset as u32;
+                } else if node.child[s] != 0 {
+                    node.child[s] += p.node_offset as u32;
+                }
+            }
+            *out = node;
+        }
+        out_prims.copy_from_slice(&p.piece.prims);
+    });
+}
