@@ -28,29 +28,45 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Above this many primitives a wide node's interior slots are built as separate tasks.
-const PARALLEL_GRAIN: u32 = 1 << 13;
+const PARALLEL_GRAIN: u32 = 1 << 15;
 
-/// A node of the binary PHR tree, held as a slot of the wide node being filled.
-#[derive(Clone, Copy)]
+/// A node of the binary PHR tree, held as a slot of the wide node being filled. (Small: the
+/// greedy fill copies slots around; its children's ranges live in [`WideScratch`].)
+#[derive(Clone, Copy, Default)]
 struct Slot {
     bounds: Aabb,
+    area: f32,
     prims: u32,
     /// Its cut is `pool[start..end]`, ordered by its split.
     start: u32,
     end: u32,
     /// Its depth in the binary tree (what PHR's thresholds count).
     depth: u32,
-    /// Its children as ranges of its cut (relative to `start`); none for a leaf.
-    ranges: Ranges,
+    /// Its children are the ranges `children[first_child..first_child + kids]` of its cut
+    /// (relative to `start`); no children for a leaf.
+    first_child: u32,
+    kids: u32,
 }
 
 impl Slot {
     fn is_leaf(&self) -> bool {
-        self.ranges.len == 0
+        self.kids == 0
     }
+}
 
-    fn area(&self) -> f32 {
-        self.bounds.surface_area()
+/// Scratch space of one task.
+#[derive(Default)]
+struct WideScratch {
+    phr: Scratch,
+    /// Where [`Ctx::partition`] puts a split's ranges.
+    ranges: Ranges,
+    /// The children's ranges of every slot of this task.
+    children: Vec<(u32, u32)>,
+}
+
+impl Default for Ranges {
+    fn default() -> Self {
+        Ranges::LEAF
     }
 }
 
@@ -77,10 +93,10 @@ pub fn build_phr_wide<const N: usize>(aux: &AuxTree, options: &PhrOptions, into:
     let wide = WideCtx { ctx: &ctx, merge: collapse.merge_leaves, align: collapse.leaf_align as usize };
     let mut pool = super::cut::initial_cut(aux, ctx.threshold(0), options.max_initial_cut);
     let initial_cut = pool.len();
-    let mut scratch = Scratch::default();
+    let mut scratch = WideScratch::default();
     let root = wide.slot(&mut pool, 0, 0, &mut scratch);
-    ctx.build_cost.fetch_add(scratch.build_cost, Ordering::Relaxed);
-    let built = wide.build::<N>(pool, root, 0);
+    ctx.build_cost.fetch_add(scratch.phr.build_cost, Ordering::Relaxed);
+    let built = wide.build::<N>(pool, root, scratch.children, 0);
     assemble(&built, &mut nodes, &mut prims, wide.align);
     (into.nodes, into.prim_indices, into.stack_bound) = (nodes, prims, built.bound());
     PhrStats { build_cost: ctx.build_cost.into_inner(), initial_cut }
@@ -97,35 +113,45 @@ struct WideCtx<'a, 'b> {
 impl WideCtx<'_, '_> {
     /// The slot of the cut `pool[start..]` (the top of the pool) at `depth`: a leaf if it is
     /// small enough to merge, else split by PHR.
-    fn slot(&self, pool: &mut Vec<CutNode>, start: usize, depth: u32, scratch: &mut Scratch) -> Slot {
+    fn slot(&self, pool: &mut Vec<CutNode>, start: usize, depth: u32, scratch: &mut WideScratch) -> Slot {
         let prims = cut_prims(&pool[start..]);
-        let mut ranges = Ranges::LEAF;
+        let first_child = scratch.children.len() as u32;
         let bounds = if prims <= self.merge {
+            scratch.ranges.len = 0;
             cut_bounds(&pool[start..])
         } else {
-            self.ctx.partition(pool, start, depth, scratch, &mut ranges)
+            let bounds = self.ctx.partition(pool, start, depth, &mut scratch.phr, &mut scratch.ranges);
+            scratch.children.extend_from_slice(scratch.ranges.as_slice());
+            bounds
         };
-        Slot { bounds, prims, start: start as u32, end: pool.len() as u32, depth, ranges }
+        let (start, end) = (start as u32, pool.len() as u32);
+        let kids = scratch.ranges.len as u32;
+        Slot { bounds, area: bounds.surface_area(), prims, start, end, depth, first_child, kids }
     }
 
     /// The slots of the wide node made from `root` (an interior slot whose cut is in
-    /// `pool`): its children, then greedily the children of the interior slot of largest
-    /// area while they fit. A root that is a leaf gives one slot, itself.
-    fn slots<const N: usize>(&self, pool: &mut Vec<CutNode>, root: &Slot, scratch: &mut Scratch) -> ([Slot; N], usize) {
-        let mut slots = [*root; N];
+    /// `pool`), into `slots`: its children, then greedily the children of the interior slot
+    /// of largest area while they fit. A root that is a leaf gives one slot, itself. Returns
+    /// the number of slots.
+    fn slots<const N: usize>(
+        &self,
+        pool: &mut Vec<CutNode>,
+        root: Slot,
+        slots: &mut [Slot; N],
+        scratch: &mut WideScratch,
+    ) -> usize {
+        slots[0] = root;
         if root.is_leaf() {
-            return (slots, 1);
+            return 1;
         }
-        let mut k = self.open(pool, root, &mut slots, 0, 1, scratch);
+        let mut k = self.open(pool, root, slots, 0, 1, scratch);
         loop {
             let open = (0..k)
-                .filter(|&i| !slots[i].is_leaf() && k - 1 + slots[i].ranges.len <= N)
-                .max_by(|&i, &j| slots[i].area().total_cmp(&slots[j].area()));
-            let Some(i) = open else { break };
-            let opened = slots[i];
-            k = self.open(pool, &opened, &mut slots, i, k, scratch);
+                .filter(|&i| !slots[i].is_leaf() && k - 1 + slots[i].kids as usize <= N)
+                .max_by(|&i, &j| slots[i].area.total_cmp(&slots[j].area));
+            let Some(i) = open else { return k };
+            k = self.open(pool, slots[i], slots, i, k, scratch);
         }
-        (slots, k)
     }
 
     /// Refines the children of interior slot `s` at their depth and makes each a slot: the
@@ -133,18 +159,19 @@ impl WideCtx<'_, '_> {
     fn open<const N: usize>(
         &self,
         pool: &mut Vec<CutNode>,
-        s: &Slot,
+        s: Slot,
         slots: &mut [Slot; N],
         at: usize,
         mut k: usize,
-        scratch: &mut Scratch,
+        scratch: &mut WideScratch,
     ) -> usize {
         let t = self.ctx.threshold(s.depth + 1);
-        for (c, &(a, b)) in s.ranges.as_slice().iter().enumerate() {
+        for c in 0..s.kids {
+            let (a, b) = scratch.children[(s.first_child + c) as usize];
             let child_start = pool.len();
             for j in (s.start + a) as usize..(s.start + b) as usize {
                 let n = pool[j];
-                self.ctx.aux.refine_into(n, t, pool, &mut scratch.cut_stack);
+                self.ctx.aux.refine_into(n, t, pool, &mut scratch.phr.cut_stack);
             }
             let child = self.slot(pool, child_start, s.depth + 1, scratch);
             if c == 0 {
@@ -173,14 +200,14 @@ impl WideCtx<'_, '_> {
         pool: &[CutNode],
         slots: &[Slot],
         prims: &mut Vec<u32>,
-        scratch: &mut Scratch,
+        scratch: &mut WideScratch,
         mut interior: impl FnMut(usize, &Slot) -> u32,
     ) -> WideNode<N> {
         let mut node = WideNode::<N>::EMPTY;
         for (i, s) in slots.iter().enumerate() {
             node.set_child_bounds(i, s.bounds);
             if s.is_leaf() {
-                (node.child[i], node.count[i]) = self.emit_leaf(pool, s, prims, scratch);
+                (node.child[i], node.count[i]) = self.emit_leaf(pool, s, prims, &mut scratch.phr);
             } else {
                 node.child[i] = interior(i, s);
             }
@@ -188,26 +215,40 @@ impl WideCtx<'_, '_> {
         node
     }
 
-    /// Builds the subtree of `root` (whose cut is in `pool`) at stack depth `depth`: in
-    /// parallel while it is large, else as a piece.
-    fn build<const N: usize>(&self, mut pool: Vec<CutNode>, root: Slot, depth: usize) -> WideBuilt<N> {
+    /// Builds the subtree of `root` (whose cut is in `pool`, its children's ranges in
+    /// `children`) at stack depth `depth`: in parallel while it is large, else as a piece.
+    fn build<const N: usize>(
+        &self,
+        mut pool: Vec<CutNode>,
+        root: Slot,
+        children: Vec<(u32, u32)>,
+        depth: usize,
+    ) -> WideBuilt<N> {
+        let mut scratch = WideScratch { children, ..WideScratch::default() };
         if root.prims <= PARALLEL_GRAIN || root.is_leaf() {
-            return WideBuilt::Piece(self.piece(pool, root, depth));
+            return WideBuilt::Piece(self.piece(pool, root, depth, scratch));
         }
-        let mut scratch = Scratch::default();
-        let (slots, k) = self.slots::<N>(&mut pool, &root, &mut scratch);
+        let mut slots = [Slot::default(); N];
+        let k = self.slots(&mut pool, root, &mut slots, &mut scratch);
         let depth = depth + k - 1;
         let (mut leaf_prims, mut interior) = (Vec::new(), Vec::new());
         let node = self.node(&pool, &slots[..k], &mut leaf_prims, &mut scratch, |i, s| {
             // The slot's cut moves to a vector of its own, its ranges relative to it.
             let cut = pool[s.start as usize..s.end as usize].to_vec();
-            interior.push((i, cut, Slot { start: 0, end: s.end - s.start, ..*s }));
+            interior.push((i, cut, *s));
             0
         });
-        self.ctx.build_cost.fetch_add(scratch.build_cost, Ordering::Relaxed);
+        let interior: Vec<_> = interior
+            .into_iter()
+            .map(|(i, cut, s)| {
+                let ranges = scratch.children[s.first_child as usize..(s.first_child + s.kids) as usize].to_vec();
+                (i, cut, Slot { start: 0, end: s.end - s.start, first_child: 0, ..s }, ranges)
+            })
+            .collect();
+        self.ctx.build_cost.fetch_add(scratch.phr.build_cost, Ordering::Relaxed);
         drop(pool);
         let children: Vec<(usize, WideBuilt<N>)> =
-            interior.into_par_iter().map(|(i, cut, s)| (i, self.build(cut, s, depth))).collect();
+            interior.into_par_iter().map(|(i, cut, s, ranges)| (i, self.build(cut, s, ranges, depth))).collect();
         let bound = children.iter().map(|(_, c)| c.bound()).max().unwrap_or(0).max(depth);
         WideBuilt::Split { node, leaf_prims, children, bound }
     }
@@ -219,14 +260,20 @@ impl WideCtx<'_, '_> {
     /// cut it was made from. Its interior slots are then taken highest in the pool first, so
     /// when one is taken everything above its cut is dead (opened slots, leaves already
     /// emitted, finished siblings) and is dropped.
-    fn piece<const N: usize>(&self, mut pool: Vec<CutNode>, root: Slot, depth: usize) -> WidePiece<N> {
-        let mut scratch = Scratch::default();
+    fn piece<const N: usize>(
+        &self,
+        mut pool: Vec<CutNode>,
+        root: Slot,
+        depth: usize,
+        mut scratch: WideScratch,
+    ) -> WidePiece<N> {
         let mut piece = WidePiece::new();
+        let mut slots = [Slot::default(); N];
         // (slot whose children fill the wide node, wide node, stack depth above it)
         let mut work = vec![(root, 0usize, depth)];
         while let Some((slot, w, depth)) = work.pop() {
             pool.truncate(slot.end as usize);
-            let (slots, k) = self.slots::<N>(&mut pool, &slot, &mut scratch);
+            let k = self.slots(&mut pool, slot, &mut slots, &mut scratch);
             let depth = depth + k - 1;
             piece.bound = piece.bound.max(depth);
             let pending = work.len();
@@ -240,7 +287,7 @@ impl WideCtx<'_, '_> {
             piece.nodes[w] = node;
         }
         start_leaf(&mut piece.prims, self.align);
-        self.ctx.build_cost.fetch_add(scratch.build_cost, Ordering::Relaxed);
+        self.ctx.build_cost.fetch_add(scratch.phr.build_cost, Ordering::Relaxed);
         piece
     }
 }
