@@ -52,7 +52,7 @@ pub mod wide;
 pub use aabb::Aabb;
 pub use builder::Builder;
 pub use lbvh::{build_lbvh, LbvhOptions};
-pub use metrics::{sah_cost, tree_stats, SahConstants, TreeStats};
+pub use metrics::{sah_cost, tree_stats, wide_sah_cost, SahConstants, TreeStats};
 pub use node::{Bvh, Node};
 pub use ray::Ray;
 pub use refit::refit;

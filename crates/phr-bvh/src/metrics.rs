@@ -6,6 +6,7 @@
 //! `c_i = 1`; the issue tables also report `c_t = c_i = 1`.
 
 use crate::node::Bvh;
+use crate::wide::WideBvh;
 
 /// The constants of the surface area heuristic.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -57,6 +58,26 @@ pub fn sah_cost(bvh: &Bvh, c: SahConstants) -> f64 {
         })
         .collect();
     chunk_sums.iter().sum::<f64>() / root_area
+}
+
+/// [`sah_cost`] of a wide tree: each node is one traversal step (its root included), each
+/// leaf slot costs its primitives. (A wide tree has fewer, larger steps than the binary tree
+/// it was collapsed from, so its cost is lower: compare wide trees with wide trees.)
+pub fn wide_sah_cost<const N: usize>(wide: &WideBvh<N>, c: SahConstants) -> f64 {
+    let Some(root) = wide.nodes.first() else { return 0.0 };
+    let root_area = (0..N).fold(crate::Aabb::EMPTY, |b, i| b.union(root.child_bounds(i))).surface_area() as f64;
+    if root_area <= 0.0 {
+        return 0.0;
+    }
+    let slots: f64 = wide
+        .nodes
+        .iter()
+        .flat_map(|n| {
+            (0..N).filter(|&i| n.is_used(i)).map(move |i| (n.child_bounds(i).surface_area() as f64, n.count[i]))
+        })
+        .map(|(a, count)| if count == 0 { c.traversal as f64 * a } else { c.intersection as f64 * a * count as f64 })
+        .sum();
+    (c.traversal as f64 * root_area + slots) / root_area
 }
 
 /// Shape statistics of a tree.

@@ -37,3 +37,33 @@ fn hundred_animated_frames_stay_valid_and_exact() {
         assert_matches_brute_force(bvh, &tris, &rays, &format!("frame {frame}"));
     }
 }
+
+/// `update_wide` gives the tree `update` gives, collapsed: the same SAH cost every frame, the
+/// wide invariants, and brute force's hits, while the mesh moves.
+#[test]
+fn direct_wide_updates_equal_the_collapse() {
+    use phr_bvh::{wide_sah_cost, PackedTriangles, SahConstants, WideBvh};
+    let mut rng = Rng::new(5);
+    let rest = random_soup(6000, 1.0, &mut rng);
+    let boxes = triangle_boxes(&rest);
+    let (mut binary, mut direct) = (DynamicBvh::new(&boxes, PhrOptions::HQ), DynamicBvh::new(&boxes, PhrOptions::HQ));
+    let (mut collapsed, mut wide) = (WideBvh::<8>::default(), WideBvh::<8>::default());
+    for frame in 0..20 {
+        let shift = |v: Vec3| v + Vec3::new(0.0, 0.2 * (5.0 * v.x + frame as f32 * 0.3).sin(), 0.0);
+        let tris: Vec<[Vec3; 3]> = rest.iter().map(|t| t.map(shift)).collect();
+        let boxes = triangle_boxes(&tris);
+        let (bvh, timings) = binary.update(&boxes);
+        collapsed.rebuild(&bvh);
+        let direct_timings = direct.update_wide(&boxes, &mut wide);
+        wide.validate(&boxes).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        let (a, b) = (wide_sah_cost(&collapsed, SahConstants::UNIT), wide_sah_cost(&wide, SahConstants::UNIT));
+        assert!((a - b).abs() <= 1e-9 * a, "frame {frame}: SAH {a} collapsed, {b} direct");
+        assert_eq!(wide.leaf_count(), collapsed.leaf_count(), "frame {frame}");
+        assert!(direct_timings.build_cost > 0 && direct_timings.build_cost <= timings.build_cost);
+        let packed = PackedTriangles::new(&wide.prim_indices, &tris);
+        for ray in random_rays(bvh.root_bounds(), 50, &mut rng) {
+            let hit = wide.closest_triangle(&packed, &ray).map(|(p, h)| (h.t, p));
+            assert_eq!(hit, brute_force(&tris, &ray), "frame {frame}");
+        }
+    }
+}

@@ -399,3 +399,37 @@ fn large_trees_collapse_in_parallel_identically_and_correctly() {
         assert_eq!(a.prim_indices, b.prim_indices, "{what}");
     }
 }
+
+/// `wide_sah_cost` on a tree small enough to cost by hand: a root with two leaves (unit
+/// cubes at x = 0 and x = 2, two and one primitives) and an interior child (the box
+/// [0, 3] × [0, 1]², area 14) holding one leaf of four primitives in the same box.
+#[test]
+fn wide_sah_cost_by_hand() {
+    use phr_bvh::wide::WideNode;
+    use phr_bvh::{wide_sah_cost, Aabb, SahConstants};
+    let cube = |x: f32| Aabb::new(Vec3::new(x, 0.0, 0.0), Vec3::new(x + 1.0, 1.0, 1.0));
+    let long = Aabb::new(Vec3::ZERO, Vec3::new(3.0, 1.0, 1.0));
+    let mut root = WideNode::<4>::EMPTY;
+    let mut inner = WideNode::<4>::EMPTY;
+    let set = |node: &mut WideNode<4>, i: usize, b: Aabb, child: u32, count: u32| {
+        let (min, max) = (b.min.to_array(), b.max.to_array());
+        for axis in 0..3 {
+            node.bounds[2 * axis][i] = min[axis];
+            node.bounds[2 * axis + 1][i] = max[axis];
+        }
+        (node.child[i], node.count[i]) = (child, count);
+    };
+    set(&mut root, 0, cube(0.0), 0, 2);
+    set(&mut root, 1, cube(2.0), 2, 1);
+    set(&mut root, 2, long, 1, 0);
+    set(&mut inner, 0, long, 3, 4);
+    let mut wide = WideBvh::<4>::default();
+    wide.nodes = vec![root, inner];
+    wide.prim_indices = (0..7).collect();
+    // Root 2·14, leaves 6·2 + 6·1, interior 2·14, its leaf 14·4; over the root's 14.
+    let thesis = (2.0 * 14.0 + 6.0 * 2.0 + 6.0 + 2.0 * 14.0 + 14.0 * 4.0) / 14.0;
+    assert!((wide_sah_cost(&wide, SahConstants::THESIS) - thesis).abs() < 1e-9);
+    let unit = (14.0 + 6.0 * 2.0 + 6.0 + 14.0 + 14.0 * 4.0) / 14.0;
+    assert!((wide_sah_cost(&wide, SahConstants::UNIT) - unit).abs() < 1e-9);
+    assert_eq!(wide_sah_cost(&WideBvh::<4>::default(), SahConstants::UNIT), 0.0);
+}

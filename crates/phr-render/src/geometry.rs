@@ -20,7 +20,9 @@
 //! Rendering traces through a wide BVH ([`phr_bvh::wide`]) collapsed from the builder's tree
 //! whenever the tree is set ([`Geometry::build`], [`Geometry::set_bvh`]), with the triangles
 //! packed in its leaf order: width 8, the faster of 4 and 8 on every shared scene in
-//! `phr bench-rays`. The tree is private so that the wide copy can never be stale; the
+//! `phr bench-rays`. A part that PHR rebuilds every frame gets its wide tree straight from
+//! PHR instead ([`Geometry::set_part_wide`]), with no binary tree and no collapse. The tree
+//! is private so that the wide copy can never be stale; the
 //! counting query for heatmaps ([`Geometry::intersect_counted`]) keeps the binary reference
 //! traversal, whose node counts are the thesis's traversal steps.
 
@@ -29,6 +31,7 @@ use glam::{Affine3A, Vec3};
 use phr_bvh::builder::BuildReport;
 use phr_bvh::instance::{Instance, TopLevel};
 use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
+use phr_bvh::wide::{WideStats, PAD};
 use phr_bvh::{closest_hit_counted, Aabb, Builder, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
 use std::borrow::Cow;
 
@@ -129,7 +132,8 @@ const DIRECT_MOVED: usize = 2;
 struct Part {
     /// The primitives, ascending; `None`: all of them.
     prims: Option<Vec<u32>>,
-    /// The builder's tree (binary or k-ary), with scene-order primitive indices.
+    /// The builder's tree (binary or k-ary), with scene-order primitive indices; empty if
+    /// the wide tree was built directly ([`Geometry::set_part_wide`]).
     bvh: Bvh,
     /// `bvh` collapsed to [`WIDTH`] children, and the triangles in its leaf order.
     wide: WideBvh<WIDTH>,
@@ -137,6 +141,13 @@ struct Part {
     /// Some of the primitives are spheres (the leaf test then checks each one's kind).
     has_spheres: bool,
     instance: Instance,
+}
+
+/// Renumbers a part's primitive indices (its order, from 0) to the scene's (`prims`);
+/// [`PAD`] entries stay. (In parallel: a deforming part does this every frame.)
+fn to_scene_order(indices: &mut [u32], prims: &[u32]) {
+    use rayon::prelude::*;
+    indices.par_iter_mut().with_min_len(1 << 14).filter(|p| **p != PAD).for_each(|p| *p = prims[*p as usize]);
 }
 
 /// The width of the wide BVH the renderer traces (see the module documentation).
@@ -246,23 +257,31 @@ impl Geometry {
     /// The boxes of part `k`'s primitives, in its order (what its tree is built over);
     /// recomputed from the primitives, and written to [`Geometry::boxes`] too.
     pub fn part_boxes(&mut self, k: usize) -> Vec<Aabb> {
+        let mut boxes = Vec::new();
+        self.part_boxes_into(k, &mut boxes);
+        boxes
+    }
+
+    /// [`Geometry::part_boxes`] into `boxes`' memory (a deforming part's boxes are recomputed
+    /// every frame).
+    pub fn part_boxes_into(&mut self, k: usize, boxes: &mut Vec<Aabb>) {
         use rayon::prelude::*;
         let Some(prims) = &self.parts[k].prims else {
             self.update_boxes();
-            return self.boxes.clone();
+            boxes.clone_from(&self.boxes);
+            return;
         };
         let (triangles, spheres) = (&self.triangles, &self.spheres);
-        let boxes: Vec<Aabb> = prims
+        prims
             .par_iter()
             .map(|&p| match triangles.get(p as usize) {
                 Some(&[a, b, c]) => triangle_bounds(a, b, c),
                 None => spheres[p as usize - triangles.len()].sphere.bounds(),
             })
-            .collect();
-        for (&p, b) in prims.iter().zip(&boxes) {
+            .collect_into_vec(boxes);
+        for (&p, b) in prims.iter().zip(boxes.iter()) {
             self.boxes[p as usize] = *b;
         }
-        boxes
     }
 
     /// The triangles of part `k`, in its order: the first primitives of
@@ -285,24 +304,60 @@ impl Geometry {
         let start = std::time::Instant::now();
         let part = &mut self.parts[k];
         if let Some(prims) = &part.prims {
-            for p in &mut bvh.prim_indices {
-                *p = prims[*p as usize];
-            }
+            to_scene_order(&mut bvh.prim_indices, prims);
         }
         // Into the previous frame's memory: in a dynamic scene this runs every frame.
         part.wide.rebuild(&bvh);
+        self.pack_part(k);
+        let elapsed = start.elapsed();
+        self.parts[k].bvh = bvh;
+        self.update_part_bounds(k);
+        elapsed
+    }
+
+    /// Sets part `k`'s wide tree without a builder's tree: `build` fills it (into the
+    /// previous tree's memory) over [`Geometry::part_boxes`], primitives numbered from 0 in
+    /// the part's order, as PHR does straight from its auxiliary tree
+    /// ([`phr_bvh::dynamic::DynamicBvh::update_wide`]). The part then has no binary tree:
+    /// [`Geometry::part_bvh`] is empty and [`Geometry::intersect_counted`] counts the wide
+    /// traversal's nodes in it. Returns what `build` returns and the time of the rest (the
+    /// primitive numbering and the packing).
+    pub fn set_part_wide<T>(
+        &mut self,
+        k: usize,
+        build: impl FnOnce(&mut WideBvh<WIDTH>) -> T,
+    ) -> (T, std::time::Duration) {
+        let part = &mut self.parts[k];
+        part.bvh = Bvh::default();
+        let built = build(&mut part.wide);
+        let start = std::time::Instant::now();
+        if let Some(prims) = &part.prims {
+            to_scene_order(&mut part.wide.prim_indices, prims);
+        }
+        self.pack_part(k);
+        let elapsed = start.elapsed();
+        self.update_part_bounds(k);
+        (built, elapsed)
+    }
+
+    /// Packs part `k`'s triangles in its wide tree's leaf order (into the previous frame's
+    /// memory: in a dynamic scene this runs every frame).
+    fn pack_part(&mut self, k: usize) {
+        let part = &mut self.parts[k];
         part.packed.repack(&part.wide.prim_indices, &self.triangles);
         let n_tris = self.triangles.len() as u32;
         part.has_spheres = match &part.prims {
             Some(prims) => prims.last().is_some_and(|&p| p >= n_tris),
             None => !self.spheres.is_empty(),
         };
-        let elapsed = start.elapsed();
-        part.bvh = bvh;
+    }
+
+    /// Gives the top level part `k`'s new box (for culling; the top-level tree over the
+    /// moved parts is rebuilt by [`Geometry::place`]).
+    fn update_part_bounds(&mut self, k: usize) {
         if let Some(placement) = &mut self.placement {
             placement.update_bounds(k as u32, self.parts[k].world_bounds());
         }
-        elapsed
     }
 
     /// Moves parts: `(k, to_world)` places part `k`'s object space in the world (parts not
@@ -360,9 +415,15 @@ impl Geometry {
         &self.parts[0].bvh
     }
 
-    /// The builder's tree of part `k`, with scene-order primitive indices.
+    /// The builder's tree of part `k`, with scene-order primitive indices (empty if its wide
+    /// tree was built directly: [`Geometry::set_part_wide`]).
     pub fn part_bvh(&self, k: usize) -> &Bvh {
         &self.parts[k].bvh
+    }
+
+    /// The wide tree of part `k` that the queries trace.
+    pub fn part_wide(&self, k: usize) -> &WideBvh<WIDTH> {
+        &self.parts[k].wide
     }
 
     /// Takes the whole scene's tree out (after [`Geometry::split`]: the first part's), leaving
@@ -465,13 +526,30 @@ impl Geometry {
     }
 
     /// [`Geometry::intersect`] through the builders' trees (the binary reference traversal),
-    /// counting their traversal steps (the top level's are not counted).
+    /// counting their traversal steps (the top level's are not counted). A part whose wide
+    /// tree was built directly ([`Geometry::set_part_wide`]) has no builder's tree: its wide
+    /// nodes and primitive tests are counted instead.
     pub fn intersect_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> Option<Hit> {
         let mut r = *ray;
         let mut best = None;
         self.search_parts::<false>(&mut r, |k, object_ray| {
-            let bvh = &self.parts[k as usize].bvh;
-            closest_hit_counted(bvh, object_ray, |p, r| self.test_prim(p, k, r, &mut best), stats)
+            let part = &self.parts[k as usize];
+            if part.bvh.nodes.is_empty() && !part.wide.nodes.is_empty() {
+                let mut wide = WideStats::default();
+                let prims = &part.wide.prim_indices;
+                let found = part.wide.closest_hit_leaves_counted(
+                    object_ray,
+                    |first, count, r| {
+                        let leaf = &prims[first as usize..(first + count) as usize];
+                        leaf.iter().fold(false, |hit, &p| self.test_prim(p, k, r, &mut best) | hit)
+                    },
+                    &mut wide,
+                );
+                stats.nodes += wide.nodes;
+                stats.prims += wide.prims;
+                return found;
+            }
+            closest_hit_counted(&part.bvh, object_ray, |p, r| self.test_prim(p, k, r, &mut best), stats)
         });
         best
     }

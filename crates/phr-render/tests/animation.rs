@@ -105,7 +105,9 @@ fn bad_motions_are_errors_naming_the_object() {
 
 #[test]
 fn shipped_dynamic_scenes_load_animated() {
-    for (name, moving) in [("bunny_in_sponza.json", 69_451), ("dragon_in_cornell.json", 871_414)] {
+    let shipped =
+        [("bunny_in_sponza.json", 69_451), ("dragon_in_cornell.json", 871_414), ("dragon_wave.json", 871_414)];
+    for (name, moving) in shipped {
         let path = dynamic(name);
         let scene = load_scene(&path).unwrap_or_else(|e| panic!("{e}"));
         let animator = Animator::new(&scene);

@@ -4,6 +4,8 @@
 //! points and light samples must agree, through rotations, non-uniform scales and mirrors.
 
 use glam::{Affine3A, Quat, Vec3};
+use phr_bvh::dynamic::DynamicBvh;
+use phr_bvh::phr::PhrOptions;
 use phr_bvh::triangle::{intersect_triangle, triangle_normal};
 use phr_bvh::{Builder, Ray, TraversalStats};
 use phr_render::animation::{Animation, AnimationTarget, Motion, ObjectAnimation};
@@ -228,6 +230,20 @@ fn placed_parts_equal_brute_force() {
     let boxes = g.part_boxes(2);
     g.set_part_bvh(2, Builder::PHR_HQ.build(&boxes));
     check_placed(&g, n, shift, 2);
+    // And again, its wide tree built straight by PHR, without a binary tree: the counting
+    // traversal then walks the wide tree.
+    for t in &mut g.triangles[9..] {
+        *t = t.map(|v| v * Vec3::new(0.8, 1.0, 1.2) - Vec3::new(0.5, 0.2, 0.0));
+    }
+    let boxes = g.part_boxes(2);
+    let mut dynamic = DynamicBvh::new(&boxes, PhrOptions::HQ);
+    g.set_part_wide(2, |wide| dynamic.update_wide(&boxes, wide));
+    assert!(g.part_bvh(2).nodes.is_empty() && !g.part_wide(2).nodes.is_empty());
+    check_placed(&g, n, shift, 3);
+    for ray in rays(500, 11) {
+        let counted = g.intersect_counted(&ray, &mut TraversalStats::default()).map(|h| (h.t, h.prim));
+        assert_eq!(counted, g.intersect(&ray).map(|h| (h.t, h.prim)), "counting traversal, direct wide part");
+    }
     // Back to one tree over everything, in place.
     let tree = Builder::PHR_FAST.build(&g.boxes);
     let nodes = tree.nodes.len();

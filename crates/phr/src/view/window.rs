@@ -528,7 +528,7 @@ impl ViewerApp {
             row("pose", format!("{:.2} ms", report.pose_ms));
             row("refit", format!("{:.2} ms", report.refit_ms));
             row("PHR / build", format!("{:.2} ms", report.build_ms));
-            row("wide collapse", format!("{:.2} ms", report.wide_ms));
+            row("wide tree + packing", format!("{:.2} ms", report.wide_ms));
             row("render", format!("{:.2} ms", report.render_ms));
             row("frame", format!("{:.2} ms", report.frame_ms));
             row("fps", format!("{:.1}", 1e3 / report.frame_ms.max(1e-3)));
