@@ -94,13 +94,27 @@ fn viewer_renders_and_follows_input_under_xvfb() {
     let display = format!(":{n}");
     let _xvfb = Kill(
         Command::new("Xvfb")
-            .args([display.as_str(), "-screen", "0", "1280x1024x24", "-nolisten", "tcp"])
+            // -noreset: by default the server resets when its last client leaves, and a
+            // client connecting during the reset is refused (the viewer then fell back to
+            // headless, about one run in five).
+            .args([display.as_str(), "-screen", "0", "1280x1024x24", "-nolisten", "tcp", "-noreset"])
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
             .expect("start Xvfb"),
     );
-    wait_for("Xvfb", Duration::from_secs(10), || Path::new(&format!("/tmp/.X11-unix/X{n}")).exists());
+    // Until it takes connections: its socket exists a moment before it listens, and a
+    // loaded machine made the viewer try in that moment and fall back to headless.
+    wait_for("Xvfb", Duration::from_secs(20), || {
+        Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
+            && Command::new("xdotool")
+                .arg("getdisplaygeometry")
+                .env("DISPLAY", &display)
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .status()
+                .is_ok_and(|s| s.success())
+    });
 
     let out: PathBuf = std::env::temp_dir().join(format!("phr-viewer-xvfb-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
