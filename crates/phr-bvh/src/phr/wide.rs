@@ -22,7 +22,7 @@
 use super::cut::{cut_bounds, cut_prims, CutNode};
 use super::{AuxTree, Ctx, PhrOptions, PhrStats, Ranges, Scratch, THRESHOLD_TABLE};
 use crate::aabb::Aabb;
-use crate::wide::pieces::{assemble, start_leaf, WideBuilt, WidePiece};
+use crate::wide::pieces::{assemble, pad_to_block, place_leaf, WideBuilt, WidePiece};
 use crate::wide::{CollapseOptions, WideBvh, WideNode};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -71,7 +71,7 @@ impl Default for Ranges {
 }
 
 /// Builds an `N`-wide tree from the auxiliary tree `aux` with PHR into `into` (its memory
-/// reused), leaves of up to 4 primitives aligned to the 4-lane triangle blocks, as
+/// reused), leaves of up to 4 primitives within one 4-lane triangle block each, as
 /// [`WideBvh::rebuild`] makes them from [`build_phr`](super::build_phr)'s tree. A branching
 /// factor above `N` is taken as `N`.
 pub fn build_phr_wide<const N: usize>(aux: &AuxTree, options: &PhrOptions, into: &mut WideBvh<N>) -> PhrStats {
@@ -184,13 +184,13 @@ impl WideCtx<'_, '_> {
         k
     }
 
-    /// Appends the primitives of leaf slot `s` to `prims` at an aligned position; returns
-    /// where they start and how many there are.
+    /// Appends the primitives of leaf slot `s` to `prims`, placed within a block
+    /// ([`place_leaf`]); returns where they start and how many there are.
     fn emit_leaf(&self, pool: &[CutNode], s: &Slot, prims: &mut Vec<u32>, scratch: &mut Scratch) -> (u32, u32) {
         self.ctx.gather(&pool[s.start as usize..s.end as usize], scratch);
-        let start = start_leaf(prims, self.align);
+        let start = prims.len();
         prims.extend_from_slice(&scratch.leaf_prims);
-        (start as u32, scratch.leaf_prims.len() as u32)
+        (place_leaf(prims, start, self.align) as u32, scratch.leaf_prims.len() as u32)
     }
 
     /// The wide node over `slots`: every slot's box, leaves emitted into `prims`, and for each
@@ -286,7 +286,7 @@ impl WideCtx<'_, '_> {
             work[pending..].sort_unstable_by_key(|(s, _, _)| s.start);
             piece.nodes[w] = node;
         }
-        start_leaf(&mut piece.prims, self.align);
+        pad_to_block(&mut piece.prims, self.align);
         self.ctx.build_cost.fetch_add(scratch.phr.build_cost, Ordering::Relaxed);
         piece
     }

@@ -29,11 +29,11 @@
 //!
 //! Within a piece, wide nodes are stored depth-first, the children of a node consecutively;
 //! leaf primitives are renumbered in the order the leaves are written, so each leaf is a
-//! contiguous range of [`super::WideBvh::prim_indices`]. Each leaf starts at a multiple of
-//! [`CollapseOptions::leaf_align`] (the gaps hold [`super::PAD`]), so a leaf of up to 4 triangles is
-//! one 4-lane block of the packed triangles.
+//! contiguous range of [`super::WideBvh::prim_indices`]. No leaf of up to 4 triangles crosses
+//! a boundary of the packed triangles' 4-lane blocks ([`CollapseOptions::leaf_align`]; the
+//! gaps hold [`super::PAD`]), so it is one SIMD test; small leaves share blocks.
 
-use super::pieces::{assemble, start_leaf, WideBuilt, WidePiece};
+use super::pieces::{assemble, pad_to_block, place_leaf, WideBuilt, WidePiece};
 use super::WideNode;
 use crate::aabb::Aabb;
 use crate::node::Bvh;
@@ -43,12 +43,14 @@ use crate::node::Bvh;
 pub struct CollapseOptions {
     /// Subtrees with at most this many primitives become one leaf (1: keep the source's).
     pub merge_leaves: u32,
-    /// Leaves start at multiples of this in `prim_indices` (1: no padding).
+    /// Blocks of this many entries in `prim_indices` that a leaf crosses no more of than it
+    /// must: a leaf of at most this many primitives lies within one, a larger one starts
+    /// one (1: no padding).
     pub leaf_align: u32,
 }
 
 impl Default for CollapseOptions {
-    /// Leaves of up to 4 primitives, aligned to the 4-lane triangle blocks.
+    /// Leaves of up to 4 primitives, each within one 4-lane triangle block.
     fn default() -> Self {
         Self { merge_leaves: 4, leaf_align: super::triangles::LANES as u32 }
     }
@@ -290,11 +292,11 @@ impl Emit<'_> {
         (kids, k)
     }
 
-    /// Appends the primitives of leaf bin `b` to `out`, starting at an aligned position;
-    /// returns where they start and how many there are. A merged subtree of a tree with
+    /// Appends the primitives of leaf bin `b` to `out`, placed within a block
+    /// ([`place_leaf`]); returns where they start and how many there are. A merged subtree of a tree with
     /// spatial splits may hold two parts of one primitive: it is written once.
     fn emit_leaf(&self, b: u32, out: &mut Vec<u32>, stack: &mut Vec<u32>) -> (u32, u32) {
-        let start = start_leaf(out, self.align);
+        let start = out.len();
         let bin = &self.bins[b as usize];
         if bin.is_leaf() {
             out.extend_from_slice(&self.src.prim_indices[bin.first as usize..(bin.first + bin.count) as usize]);
@@ -309,7 +311,8 @@ impl Emit<'_> {
             }
             out.truncate(end);
         }
-        (start as u32, (out.len() - start) as u32)
+        let count = out.len() - start;
+        (place_leaf(out, start, self.align) as u32, count as u32)
     }
 
     /// The wide node over the slots `kids`: every slot's box, leaves emitted into `prims`,
@@ -376,7 +379,7 @@ impl Emit<'_> {
             work[pending..].reverse();
             piece.nodes[w] = node;
         }
-        start_leaf(&mut piece.prims, self.align);
+        pad_to_block(&mut piece.prims, self.align);
         piece
     }
 }

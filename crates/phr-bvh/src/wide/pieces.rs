@@ -16,17 +16,32 @@ impl<const N: usize> WidePiece<N> {
     }
 }
 
-/// Starts a leaf in `prims` at the next multiple of `align` (the gap holds [`PAD`]); returns
-/// where it starts.
+/// Places the leaf just appended at `prims[start..]` so that it straddles no more blocks of
+/// `block` entries than it must: a leaf of at most `block` primitives lies within one block
+/// (it is moved past [`PAD`] entries to the next block if it would cross a boundary), a
+/// larger one starts a block. Small leaves thus share blocks instead of each padding one out.
+/// Returns where the leaf starts.
 #[inline]
-pub(crate) fn start_leaf(prims: &mut Vec<u32>, align: usize) -> usize {
-    prims.resize(prims.len().next_multiple_of(align), PAD);
-    prims.len()
+pub(crate) fn place_leaf(prims: &mut Vec<u32>, start: usize, block: usize) -> usize {
+    let (count, offset) = (prims.len() - start, start % block);
+    if offset == 0 || offset + count <= block {
+        return start;
+    }
+    let pad = block - offset;
+    prims.splice(start..start, std::iter::repeat_n(PAD, pad));
+    start + pad
+}
+
+/// Pads `prims` to a whole number of blocks of `block` entries (the end of a piece, so the
+/// next piece starts a block).
+#[inline]
+pub(crate) fn pad_to_block(prims: &mut Vec<u32>, block: usize) {
+    prims.resize(prims.len().next_multiple_of(block), PAD);
 }
 
 /// Wide nodes and leaf primitives of one subtree, with local indices: its root is node 0,
-/// interior slots index `nodes`, leaf slots index `prims` (whose length is a multiple of the
-/// alignment, so the piece can be placed at any aligned offset). `bound` is the stack bound
+/// interior slots index `nodes`, leaf slots index `prims` (whose length is a whole number of
+/// blocks, so the piece can be placed at any block boundary). `bound` is the stack bound
 /// of the subtree, counted from the depth it was built at.
 pub(crate) struct WidePiece<const N: usize> {
     pub nodes: Vec<WideNode<N>>,
@@ -91,7 +106,7 @@ pub(crate) fn assemble<const N: usize>(
                     }
                 }
                 prims.extend_from_slice(leaf_prims);
-                prims.resize(prims.len().next_multiple_of(align), PAD);
+                pad_to_block(prims, align);
                 nodes.push(node);
                 for (slot, c) in children.iter().rev() {
                     stack.push((c, Some((index, *slot))));
