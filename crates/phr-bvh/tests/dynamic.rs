@@ -67,3 +67,43 @@ fn direct_wide_updates_equal_the_collapse() {
         }
     }
 }
+
+/// A refit with the boxes the tree was built over gives the builder's boxes, bit for bit;
+/// after the primitives move, the refitted tree is valid over the new boxes and gives brute
+/// force's hits (its topology is the old one).
+#[test]
+fn refitted_wide_trees_enclose_the_moved_primitives() {
+    use phr_bvh::{PackedTriangles, WideBvh};
+    let mut rng = Rng::new(9);
+    let rest = random_soup(5000, 1.0, &mut rng);
+    let boxes = triangle_boxes(&rest);
+    for (name, mut wide) in [
+        ("direct PHR", {
+            let mut w = WideBvh::<8>::default();
+            DynamicBvh::new(&boxes, PhrOptions::FAST).update_wide(&boxes, &mut w);
+            w
+        }),
+        (
+            "collapsed binned SAH",
+            WideBvh::<8>::from_bvh(&"binned-sah".parse::<phr_bvh::Builder>().unwrap().build(&boxes)),
+        ),
+    ] {
+        let built = wide.nodes.clone();
+        wide.refit(&boxes);
+        assert!(wide.nodes == built, "{name}: a refit over the same boxes changed the tree");
+        for frame in 1..6 {
+            let shift = |v: Vec3| v + Vec3::new(0.0, 0.3 * (4.0 * v.x + frame as f32).sin(), 0.1 * frame as f32);
+            let tris: Vec<[Vec3; 3]> = rest.iter().map(|t| t.map(shift)).collect();
+            let moved = triangle_boxes(&tris);
+            assert!(wide.validate(&moved).is_err(), "{name}: the motion must leave the old boxes");
+            wide.refit(&moved);
+            wide.validate(&moved).unwrap_or_else(|e| panic!("{name}, frame {frame}: {e}"));
+            let packed = PackedTriangles::new(&wide.prim_indices, &tris);
+            let bounds = moved.iter().fold(phr_bvh::Aabb::EMPTY, |b, x| b.union(*x));
+            for ray in random_rays(bounds, 50, &mut rng) {
+                let hit = wide.closest_triangle(&packed, &ray).map(|(p, h)| (h.t, p));
+                assert_eq!(hit, brute_force(&tris, &ray), "{name}, frame {frame}");
+            }
+        }
+    }
+}

@@ -340,6 +340,30 @@ impl Geometry {
         (built, elapsed)
     }
 
+    /// Refits part `k`'s wide tree to its primitives where they are now (from
+    /// [`Geometry::boxes`], which [`Geometry::part_boxes_into`] updates) and packs its
+    /// triangles again: the tree keeps its topology and stays valid, though its quality decays
+    /// with the motion. Returns the time taken.
+    ///
+    /// With `landed`, a tree built meanwhile (over the part's primitives numbered in its
+    /// order, as [`Geometry::set_part_wide`] takes it) replaces the part's first, and the
+    /// replaced tree is left in `landed`.
+    pub fn refit_part(&mut self, k: usize, landed: Option<&mut WideBvh<WIDTH>>) -> std::time::Duration {
+        let start = std::time::Instant::now();
+        if let Some(tree) = landed {
+            let part = &mut self.parts[k];
+            std::mem::swap(&mut part.wide, tree);
+            if let Some(prims) = &part.prims {
+                to_scene_order(&mut part.wide.prim_indices, prims);
+            }
+        }
+        self.parts[k].wide.refit(&self.boxes);
+        self.parts[k].bvh = Bvh::default();
+        self.pack_part(k);
+        self.update_part_bounds(k);
+        start.elapsed()
+    }
+
     /// Packs part `k`'s triangles in its wide tree's leaf order (into the previous frame's
     /// memory: in a dynamic scene this runs every frame).
     fn pack_part(&mut self, k: usize) {

@@ -17,6 +17,7 @@ pub mod load;
 pub mod material;
 pub mod output;
 pub mod pipeline;
+pub mod rebuild;
 pub mod render;
 pub mod sampler;
 pub mod scene;

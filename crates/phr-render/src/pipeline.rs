@@ -12,6 +12,10 @@
 //!   moves the rigid objects by their transforms and the top-level tree over them, and refits
 //!   and rebuilds the deforming part alone. Rigid motion then costs next to nothing.
 //!
+//! - [`PipelineKind::Async`]: the two-level layout, with the deforming part's PHR rebuilds on
+//!   a worker thread ([`crate::rebuild`]): moving frames refit the tree they trace and pack
+//!   its triangles, and take a new tree when the worker has one.
+//!
 //! [`FramePipeline::step`] does one frame and reports the time of each stage, which is what
 //! the viewer's statistics panel and the headless CSV show.
 
@@ -22,6 +26,7 @@ use crate::geometry::Geometry;
 use crate::lights::LightSet;
 use crate::material::Material;
 use crate::output::{srgb_encode, turbo};
+use crate::rebuild::AsyncRebuilder;
 use crate::render::Renderer;
 use crate::scene::RenderSettings;
 use crate::scene::Scene;
@@ -29,6 +34,13 @@ use glam::Vec3;
 use phr_bvh::dynamic::DynamicBvh;
 use phr_bvh::{sah_cost, wide_sah_cost, Builder, SahConstants, TraversalStats};
 use std::time::Instant;
+
+/// [`PipelineKind::Async`] starts a rebuild when the refitted tree's SAH cost exceeds this
+/// factor times the cost the last rebuilt tree had when it landed. A refit keeps the
+/// traversal cost close to a rebuild's while the motion is small (the travelling wave of
+/// `scenes/dynamic/dragon_wave.json` changes it by 0.1 %), and on two cores a rebuild's work
+/// is taken from the frames (`docs/dynamic/history.md`).
+pub const REBUILD_SAH_GROWTH: f64 = 1.10;
 
 /// What the image shows.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -67,17 +79,21 @@ pub enum PipelineKind {
     Thesis,
     /// A tree per rigid object, placed by a transform under a top-level tree; the deforming
     /// objects' tree alone is rebuilt.
-    #[default]
     TwoLevel,
+    /// [`PipelineKind::TwoLevel`] with the deforming objects' tree rebuilt on a worker
+    /// thread (PHR builders; other builders rebuild it in the frame), refitted meanwhile.
+    #[default]
+    Async,
 }
 
 impl PipelineKind {
-    pub const ALL: [PipelineKind; 2] = [PipelineKind::Thesis, PipelineKind::TwoLevel];
+    pub const ALL: [PipelineKind; 3] = [PipelineKind::Thesis, PipelineKind::TwoLevel, PipelineKind::Async];
 
     pub fn name(self) -> &'static str {
         match self {
             PipelineKind::Thesis => "thesis",
             PipelineKind::TwoLevel => "two-level",
+            PipelineKind::Async => "async",
         }
     }
 }
@@ -130,18 +146,22 @@ pub struct FrameReport {
     pub build_cost: u64,
     /// Samples per pixel accumulated so far, this frame's included.
     pub samples: u32,
+    /// Frames since the boxes the traced tree was built over: 0 when it was built this
+    /// frame; with [`PipelineKind::Async`], the frames a rebuild took to land, and more while
+    /// the landed tree is refitted.
+    pub tree_age: u64,
 }
 
 impl FrameReport {
     /// The columns of [`FrameReport::csv_row`]: what `phr view --headless` and `phr animate`
     /// write per frame.
     pub const CSV_HEADER: &'static str =
-        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples";
+        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,tree_age";
 
     /// This frame as a CSV row of [`FrameReport::CSV_HEADER`]'s columns.
     pub fn csv_row(&self) -> String {
         format!(
-            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{}",
+            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{}",
             self.frame,
             self.time,
             self.moved as u8,
@@ -155,7 +175,8 @@ impl FrameReport {
             self.mrays_per_s(),
             self.sah_cost,
             self.build_cost,
-            self.samples
+            self.samples,
+            self.tree_age
         )
     }
 
@@ -178,6 +199,12 @@ pub struct FramePipeline {
     dynamic: Option<DynamicBvh>,
     /// The parts of the two-level layout, once split.
     parts: Option<Parts>,
+    /// The deforming part's rebuild worker ([`PipelineKind::Async`] with PHR).
+    rebuilder: Option<AsyncRebuilder>,
+    /// [`FrameReport::tree_age`] of the traced tree.
+    tree_age: u64,
+    /// The SAH cost of the last tree the worker delivered, when it landed.
+    landed_sah: f64,
     /// The emissive triangles, when explicit light sampling is on.
     lights: Option<LightSet>,
     settings: PipelineSettings,
@@ -196,6 +223,8 @@ pub struct FramePipeline {
     pub playing: bool,
     /// Animation speed factor (1 = real time).
     pub speed: f32,
+    /// The rebuild policy's factor ([`REBUILD_SAH_GROWTH`]; 0: rebuild all the time).
+    pub rebuild_sah_growth: f64,
 }
 
 /// Which part of the two-level layout holds what.
@@ -217,6 +246,9 @@ impl FramePipeline {
             animator,
             dynamic: None,
             parts: None,
+            rebuilder: None,
+            tree_age: 0,
+            landed_sah: 0.0,
             lights: None,
             settings,
             camera,
@@ -231,6 +263,7 @@ impl FramePipeline {
             time: 0.0,
             playing: true,
             speed: 1.0,
+            rebuild_sah_growth: REBUILD_SAH_GROWTH,
         }
     }
 
@@ -281,6 +314,7 @@ impl FramePipeline {
             self.tree_dirty = true;
             self.dynamic = None;
             self.parts = None;
+            self.rebuilder = None;
         }
         if (settings.width, settings.height) != (self.settings.width, self.settings.height) {
             self.film = Film::new(settings.width.max(1), settings.height.max(1));
@@ -306,7 +340,9 @@ impl FramePipeline {
             self.time += dt * self.speed;
             match self.settings.pipeline {
                 PipelineKind::Thesis => self.animator.pose(&mut self.geometry, self.time),
-                PipelineKind::TwoLevel => self.animator.pose_deforming(&mut self.geometry, self.time),
+                PipelineKind::TwoLevel | PipelineKind::Async => {
+                    self.animator.pose_deforming(&mut self.geometry, self.time)
+                }
             }
             report.pose_ms = ms_since(start);
             self.restart();
@@ -314,7 +350,7 @@ impl FramePipeline {
         if moved || self.tree_dirty {
             match self.settings.pipeline {
                 PipelineKind::Thesis => self.rebuild(&mut report),
-                PipelineKind::TwoLevel => self.update_parts(&mut report),
+                PipelineKind::TwoLevel | PipelineKind::Async => self.update_parts(&mut report),
             }
             if let Some(lights) = &mut self.lights {
                 lights.refresh(&self.geometry, &self.scene.materials);
@@ -337,6 +373,7 @@ impl FramePipeline {
         report.sah_cost = self.sah;
         report.build_cost = self.build_cost;
         report.samples = self.samples;
+        report.tree_age = self.tree_age;
         report
     }
 
@@ -387,8 +424,35 @@ impl FramePipeline {
             self.geometry.part_boxes_into(d, &mut boxes);
             report.pose_ms += ms_since(pose_start);
             let build_start = Instant::now();
+            let mut landed_now = false;
             match builder {
+                Builder::Phr(options) if self.settings.pipeline == PipelineKind::Async => {
+                    // The first moving frame builds its tree here, as the worker then will.
+                    let mut landed = None;
+                    if self.rebuilder.is_none() {
+                        let (rebuilder, first) = AsyncRebuilder::new(&boxes, options, self.frame);
+                        (self.rebuilder, landed) = (Some(rebuilder), Some(first));
+                    }
+                    let Some(rebuilder) = &mut self.rebuilder else { unreachable!("made above") };
+                    let created_ms = ms_since(build_start);
+                    let mut landed = landed.or_else(|| rebuilder.finished());
+                    let refit = self.geometry.refit_part(d, landed.as_mut().map(|l| &mut l.wide));
+                    // The refit of the traced tree and the packing of the moved triangles.
+                    report.refit_ms = refit.as_secs_f64() * 1e3;
+                    landed_now = landed.is_some();
+                    self.tree_age = match landed {
+                        Some(l) => {
+                            self.build_cost = l.timings.build_cost;
+                            rebuilder.recycle(l.wide);
+                            self.frame - l.frame
+                        }
+                        None => self.tree_age + 1,
+                    };
+                    // (The build on this thread, the first time.)
+                    report.build_ms += created_ms;
+                }
                 Builder::Phr(options) => {
+                    self.tree_age = 0;
                     // Straight to the wide tree the renderer traces: no binary tree, no collapse.
                     let dynamic = self.dynamic.get_or_insert_with(|| DynamicBvh::new(&boxes, options));
                     let created_ms = ms_since(build_start);
@@ -399,12 +463,22 @@ impl FramePipeline {
                     self.build_cost = timings.build_cost;
                 }
                 _ => {
+                    self.tree_age = 0;
                     let bvh = builder.build_with_triangles(&boxes, &self.geometry.part_triangles(d));
                     report.build_ms += ms_since(build_start);
                     report.wide_ms = self.geometry.set_part_bvh(d, bvh).as_secs_f64() * 1e3;
                 }
             }
             self.sah = wide_sah_cost(self.geometry.part_wide(d), SahConstants::UNIT);
+            if let Some(rebuilder) = &mut self.rebuilder {
+                // The rebuild policy: a new tree once the refitted one has lost enough.
+                if landed_now {
+                    self.landed_sah = self.sah;
+                }
+                if self.sah > self.rebuild_sah_growth * self.landed_sah {
+                    rebuilder.start(&boxes, self.frame);
+                }
+            }
             self.part_boxes = boxes;
         }
         let place_start = Instant::now();
@@ -527,7 +601,7 @@ fn posed_geometry(scene: &Scene, animator: &mut Animator, pipeline: PipelineKind
     if animator.is_animated() {
         match pipeline {
             PipelineKind::Thesis => animator.pose(&mut geometry, t),
-            PipelineKind::TwoLevel => {
+            PipelineKind::TwoLevel | PipelineKind::Async => {
                 animator.pose_deforming(&mut geometry, t);
                 geometry.update_boxes();
             }

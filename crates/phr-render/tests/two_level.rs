@@ -300,3 +300,52 @@ fn check_placed(g: &Geometry, n: u32, shift: Vec3, layout: usize) {
     }
     assert!(hits > 500, "layout {layout}: too few hits to prove anything: {hits}");
 }
+
+/// The asynchronous pipeline traces the deforming part's tree refitted while the worker
+/// rebuilds it: every frame must still hit what the thesis pipeline (everything rebuilt in
+/// the frame) hits, so the traced tree encloses the moved triangles whether or not a new tree
+/// has landed; and new trees do land (here the policy is told to rebuild all the time).
+#[test]
+fn async_frames_hit_what_the_thesis_pipeline_hits() {
+    let mut thesis = pipeline(PipelineKind::Thesis);
+    let mut late = pipeline(PipelineKind::Async);
+    late.rebuild_sah_growth = 0.0;
+    let mut ages = Vec::new();
+    for frame in 0..12 {
+        let (a, b) = (thesis.step(0.21), late.step(0.21));
+        assert!(a.moved && b.moved);
+        ages.push(b.tree_age);
+        same_hits(thesis.geometry(), late.geometry(), frame);
+        // Some frames land a tree, some trace the refitted one.
+        std::thread::sleep(std::time::Duration::from_millis(if frame % 3 == 0 { 30 } else { 0 }));
+    }
+    assert_eq!(ages[0], 0, "the first frame traces the tree built for it");
+    assert!(ages[1..].iter().all(|&a| a >= 1), "later frames trace a tree built earlier: {ages:?}");
+    // Without landings the age would grow by one a frame.
+    assert!(ages[1..].windows(2).any(|w| w[1] <= w[0]), "no rebuilt tree landed: {ages:?}");
+}
+
+/// The rebuild policy: a tree is rebuilt when the refitted one's SAH cost has grown by the
+/// factor. On the carousel (its riders deform), an unreachable factor keeps refitting the
+/// first tree, which stays right; a factor of 1 rebuilds as soon as the cost grows at all.
+#[test]
+fn async_rebuilds_follow_the_sah_growth() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/dynamic/carousel.json");
+    let ages = |growth: f64| {
+        let mut p = pipeline_of(phr_render::scene::load_scene(&path).unwrap(), PipelineKind::Async);
+        let mut thesis = pipeline_of(phr_render::scene::load_scene(&path).unwrap(), PipelineKind::Thesis);
+        p.rebuild_sah_growth = growth;
+        (0..10u64)
+            .map(|frame| {
+                let (r, _) = (p.step(0.1), thesis.step(0.1));
+                same_hits(thesis.geometry(), p.geometry(), frame);
+                std::thread::sleep(std::time::Duration::from_millis(20));
+                r.tree_age
+            })
+            .collect::<Vec<_>>()
+    };
+    let kept = ages(f64::INFINITY);
+    assert_eq!(kept, (0..10).collect::<Vec<u64>>(), "never rebuilt");
+    let eager = ages(1.0);
+    assert!(eager.windows(2).any(|w| w[1] <= w[0]), "a growing cost rebuilds: {eager:?}");
+}

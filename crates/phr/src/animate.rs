@@ -58,8 +58,9 @@ pub struct AnimateArgs {
     #[arg(long)]
     png: bool,
     /// How trees follow the motion: `thesis` (the default here: one tree over the whole scene,
-    /// refitted and rebuilt with PHR every frame) or `two-level` (rigid objects move by their
-    /// transforms; only the deforming objects' tree is rebuilt).
+    /// refitted and rebuilt with PHR every frame), `two-level` (rigid objects move by their
+    /// transforms; only the deforming objects' tree is rebuilt) or `async` (two-level, the
+    /// deforming objects' tree rebuilt on a worker thread and refitted meanwhile).
     #[arg(long, value_enum, default_value = "thesis")]
     pipeline: PipelineArg,
 }

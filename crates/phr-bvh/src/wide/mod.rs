@@ -72,6 +72,7 @@
 pub mod child_order;
 pub mod collapse;
 pub(crate) mod pieces;
+mod refit;
 pub mod simd;
 mod traverse;
 pub mod triangles;

@@ -47,9 +47,10 @@ pub struct ViewArgs {
     branching: u32,
     /// How trees follow a moving scene: `two-level` builds a tree per rigidly moving object
     /// once and moves it by its transform under a small top-level tree, rebuilding only the
-    /// deforming objects' tree; `thesis` refits and rebuilds one tree over the whole scene
-    /// every moving frame (thesis section 5.3).
-    #[arg(long, value_enum, default_value = "two-level")]
+    /// deforming objects' tree; `async` does so too, but rebuilds the deforming objects'
+    /// tree with PHR on a worker thread while frames trace it refitted; `thesis` refits and
+    /// rebuilds one tree over the whole scene every moving frame (thesis section 5.3).
+    #[arg(long, value_enum, default_value = "async")]
     pipeline: PipelineArg,
     /// Maximum path length (default: the scene's, at most 8).
     #[arg(long)]
@@ -81,6 +82,7 @@ enum LightSampling {
 pub enum PipelineArg {
     Thesis,
     TwoLevel,
+    Async,
 }
 
 impl From<PipelineArg> for PipelineKind {
@@ -88,6 +90,7 @@ impl From<PipelineArg> for PipelineKind {
         match p {
             PipelineArg::Thesis => PipelineKind::Thesis,
             PipelineArg::TwoLevel => PipelineKind::TwoLevel,
+            PipelineArg::Async => PipelineKind::Async,
         }
     }
 }

@@ -466,6 +466,9 @@ impl ViewerApp {
                 ui.radio_value(&mut self.controls.settings.pipeline, kind, kind.name()).on_hover_text(match kind {
                     PipelineKind::Thesis => "one tree over the whole scene, refitted and rebuilt every moving frame",
                     PipelineKind::TwoLevel => "rigid objects move by their transforms; only deforming ones are rebuilt",
+                    PipelineKind::Async => {
+                        "two-level, deforming objects rebuilt on a worker thread and refitted meanwhile"
+                    }
                 });
             }
         });
