@@ -41,6 +41,7 @@ impl Aabb {
         Self { min, max }
     }
 
+    #[inline]
     pub fn from_points(points: &[Vec3]) -> Self {
         points.iter().fold(Self::EMPTY, |b, &p| b.grown(p))
     }

@@ -77,6 +77,7 @@ pub fn intersect_triangle_edges(ray: &Ray, v0: Vec3, e1: Vec3, e2: Vec3) -> Opti
 /// lie up to `MAX_EDGE_SLACK · (|e1| + |e2|)` (at most `2√3 · MAX_EDGE_SLACK` times the box's
 /// largest extent) outside the triangle, and so outside its exact bounds, where a traversal
 /// would never look for it.
+#[inline]
 pub fn triangle_bounds(v0: Vec3, v1: Vec3, v2: Vec3) -> crate::Aabb {
     let b = crate::Aabb::from_points(&[v0, v1, v2]);
     let pad = Vec3::splat(4.0 * MAX_EDGE_SLACK * b.extent().max_element());

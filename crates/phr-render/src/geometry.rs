@@ -150,6 +150,25 @@ fn to_scene_order(indices: &mut [u32], prims: &[u32]) {
     indices.par_iter_mut().with_min_len(1 << 14).filter(|p| **p != PAD).for_each(|p| *p = prims[*p as usize]);
 }
 
+/// `dst[indices[i] - offset] = src[i]` for ascending, distinct `indices`, in parallel: the
+/// indices split `dst` into disjoint ranges. (A deforming part's boxes go back into the
+/// scene's array every frame.)
+fn scatter_ascending(dst: &mut [Aabb], offset: usize, indices: &[u32], src: &[Aabb]) {
+    if indices.len() <= 1 << 14 {
+        for (&i, b) in indices.iter().zip(src) {
+            dst[i as usize - offset] = *b;
+        }
+        return;
+    }
+    let mid = indices.len() / 2;
+    let cut = indices[mid] as usize - offset;
+    let (low, high) = dst.split_at_mut(cut);
+    rayon::join(
+        || scatter_ascending(low, offset, &indices[..mid], &src[..mid]),
+        || scatter_ascending(high, offset + cut, &indices[mid..], &src[mid..]),
+    );
+}
+
 /// The width of the wide BVH the renderer traces (see the module documentation).
 pub const WIDTH: usize = 8;
 
@@ -279,9 +298,7 @@ impl Geometry {
                 None => spheres[p as usize - triangles.len()].sphere.bounds(),
             })
             .collect_into_vec(boxes);
-        for (&p, b) in prims.iter().zip(boxes.iter()) {
-            self.boxes[p as usize] = *b;
-        }
+        scatter_ascending(&mut self.boxes, 0, prims, boxes);
     }
 
     /// The triangles of part `k`, in its order: the first primitives of

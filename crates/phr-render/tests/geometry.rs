@@ -257,3 +257,35 @@ fn surface_points_lie_on_the_primitive_with_the_documented_normal_side_and_offse
     }
     assert!(checked > 1000 && fronts > 300 && backs > 300, "{checked} hits checked, {fronts} front, {backs} back");
 }
+
+/// A part's boxes, recomputed after its triangles moved, land in the scene's box array at the
+/// part's primitives and nowhere else (the parallel scatter, on a part large enough to split).
+#[test]
+fn part_boxes_go_back_to_their_primitives() {
+    use phr_bvh::triangle::triangle_bounds;
+    let scene = scene(60_000, 4, 31);
+    let mut geometry = Geometry::new(&scene);
+    let n = geometry.prim_count() as u32;
+    // Every third primitive in the second part, the rest in the first.
+    let (a, b): (Vec<u32>, Vec<u32>) = (0..n).partition(|p| p % 3 != 1);
+    geometry.split(vec![a, b.clone()], &Builder::PHR_FAST);
+    let before = geometry.boxes.clone();
+    for &p in &b {
+        if let Some(t) = geometry.triangles.get_mut(p as usize) {
+            *t = t.map(|v| v * 1.5 + Vec3::new(0.25, -1.0, 2.0));
+        }
+    }
+    let part = geometry.part_boxes(1);
+    assert_eq!(part.len(), b.len());
+    for (p, (&old, &now)) in before.iter().zip(&geometry.boxes).enumerate() {
+        let want = match geometry.triangles.get(p) {
+            Some(&[v0, v1, v2]) if p % 3 == 1 => triangle_bounds(v0, v1, v2),
+            _ => old,
+        };
+        assert_eq!(now, want, "primitive {p}");
+    }
+    assert_eq!(geometry.boxes.len(), n as usize);
+    for (i, &p) in b.iter().enumerate() {
+        assert_eq!(part[i], geometry.boxes[p as usize], "part entry {i}");
+    }
+}
