@@ -17,8 +17,8 @@ pub struct TriangleBlock {
 }
 
 /// `[v0, e1 = v1 - v0, e2 = v2 - v0]` per entry of a wide tree's `prim_indices`, 4 entries
-/// per [`TriangleBlock`]. Leaves start at block boundaries (the collapse aligns them), so a
-/// leaf of up to 4 triangles is one block: 144 bytes, read with 9 aligned loads and tested
+/// per [`TriangleBlock`]. A leaf of up to 4 triangles lies within one block (the builders place
+/// it so), so it is one block: 144 bytes, read with 9 aligned loads and tested
 /// with one 4-lane Möller–Trumbore, instead of up to 4 dependent scalar tests through an
 /// index indirection.
 ///

@@ -538,6 +538,8 @@ impl ViewerApp {
             row("Mrays/s", format!("{:.2}", report.mrays_per_s()));
             row("SAH cost", format!("{:.2}", report.sah_cost));
             row("Σ|cut|", format!("{}", report.build_cost));
+            // Frames since the traced tree's boxes: grows while the async pipeline refits.
+            row("tree age", format!("{} frames", report.tree_age));
             row("samples", format!("{}", report.samples));
         });
         frame_time_plot(ui, history);
