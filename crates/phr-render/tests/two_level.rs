@@ -317,7 +317,7 @@ fn async_frames_hit_what_the_thesis_pipeline_hits() {
         ages.push(b.tree_age);
         same_hits(thesis.geometry(), late.geometry(), frame);
         // Some frames land a tree, some trace the refitted one.
-        std::thread::sleep(std::time::Duration::from_millis(if frame % 3 == 0 { 30 } else { 0 }));
+        std::thread::sleep(std::time::Duration::from_millis(if frame % 3 == 0 { 60 } else { 0 }));
     }
     assert_eq!(ages[0], 0, "the first frame traces the tree built for it");
     assert!(ages[1..].iter().all(|&a| a >= 1), "later frames trace a tree built earlier: {ages:?}");
@@ -339,7 +339,7 @@ fn async_rebuilds_follow_the_sah_growth() {
             .map(|frame| {
                 let (r, _) = (p.step(0.1), thesis.step(0.1));
                 same_hits(thesis.geometry(), p.geometry(), frame);
-                std::thread::sleep(std::time::Duration::from_millis(20));
+                std::thread::sleep(std::time::Duration::from_millis(50));
                 r.tree_age
             })
             .collect::<Vec<_>>()
