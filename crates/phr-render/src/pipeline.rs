@@ -32,7 +32,8 @@ use crate::scene::RenderSettings;
 use crate::scene::Scene;
 use glam::Vec3;
 use phr_bvh::dynamic::DynamicBvh;
-use phr_bvh::{sah_cost, wide_sah_cost, Builder, SahConstants, TraversalStats};
+use phr_bvh::phr::PhrOptions;
+use phr_bvh::{sah_cost, wide_sah_cost, Aabb, Builder, SahConstants, TraversalStats};
 use std::time::Instant;
 
 /// [`PipelineKind::Async`] starts a rebuild when the refitted tree's SAH cost exceeds this
@@ -216,7 +217,7 @@ pub struct FramePipeline {
     tree_dirty: bool,
     sah: f64,
     /// The deforming part's primitive boxes, kept for the next frame's memory.
-    part_boxes: Vec<phr_bvh::Aabb>,
+    part_boxes: Vec<Aabb>,
     build_cost: u64,
     /// Animation time in seconds.
     pub time: f32,
@@ -409,78 +410,23 @@ impl FramePipeline {
     /// deforming part and a part per rigid object, each built by the builder; then moves the
     /// rigid parts to the current time and rebuilds the deforming part from its moved boxes.
     fn update_parts(&mut self, report: &mut FrameReport) {
-        let builder = self.settings.builder;
         if self.parts.is_none() {
             let build_start = Instant::now();
             let parts = self.split();
             report.build_ms = ms_since(build_start);
             self.parts = Some(parts);
         }
-        let Some(parts) = &self.parts else { unreachable!("split above") };
-        if let Some(d) = parts.deforming {
+        let deforming = self.parts.as_ref().and_then(|p| p.deforming);
+        if let Some(d) = deforming {
             // (Built once more on the first frame: the auxiliary tree starts here.)
             let pose_start = Instant::now();
             let mut boxes = std::mem::take(&mut self.part_boxes);
             self.geometry.part_boxes_into(d, &mut boxes);
             report.pose_ms += ms_since(pose_start);
-            let build_start = Instant::now();
-            let mut landed_now = false;
-            match builder {
-                Builder::Phr(options) if self.settings.pipeline == PipelineKind::Async => {
-                    // The first moving frame builds its tree here, as the worker then will.
-                    let mut landed = None;
-                    if self.rebuilder.is_none() {
-                        let (rebuilder, first) = AsyncRebuilder::new(&boxes, options, self.frame);
-                        (self.rebuilder, landed) = (Some(rebuilder), Some(first));
-                    }
-                    let Some(rebuilder) = &mut self.rebuilder else { unreachable!("made above") };
-                    let created_ms = ms_since(build_start);
-                    let mut landed = landed.or_else(|| rebuilder.finished());
-                    let refit = self.geometry.refit_part(d, landed.as_mut().map(|l| &mut l.wide));
-                    // The refit of the traced tree and the packing of the moved triangles.
-                    report.refit_ms = refit.as_secs_f64() * 1e3;
-                    landed_now = landed.is_some();
-                    self.tree_age = match landed {
-                        Some(l) => {
-                            self.build_cost = l.timings.build_cost;
-                            rebuilder.recycle(l.wide);
-                            self.frame - l.frame
-                        }
-                        None => self.tree_age + 1,
-                    };
-                    // (The build on this thread, the first time.)
-                    report.build_ms += created_ms;
-                }
-                Builder::Phr(options) => {
-                    self.tree_age = 0;
-                    // Straight to the wide tree the renderer traces: no binary tree, no collapse.
-                    let dynamic = self.dynamic.get_or_insert_with(|| DynamicBvh::new(&boxes, options));
-                    let created_ms = ms_since(build_start);
-                    let (timings, wide_time) = self.geometry.set_part_wide(d, |wide| dynamic.update_wide(&boxes, wide));
-                    report.refit_ms = created_ms + timings.refit.as_secs_f64() * 1e3;
-                    report.build_ms += timings.build.as_secs_f64() * 1e3;
-                    report.wide_ms = wide_time.as_secs_f64() * 1e3;
-                    self.build_cost = timings.build_cost;
-                }
-                _ => {
-                    self.tree_age = 0;
-                    let bvh = builder.build_with_triangles(&boxes, &self.geometry.part_triangles(d));
-                    report.build_ms += ms_since(build_start);
-                    report.wide_ms = self.geometry.set_part_bvh(d, bvh).as_secs_f64() * 1e3;
-                }
-            }
-            self.sah = wide_sah_cost(self.geometry.part_wide(d), SahConstants::UNIT);
-            if let Some(rebuilder) = &mut self.rebuilder {
-                // The rebuild policy: a new tree once the refitted one has lost enough.
-                if landed_now {
-                    self.landed_sah = self.sah;
-                }
-                if self.sah > self.rebuild_sah_growth * self.landed_sah {
-                    rebuilder.start(&boxes, self.frame);
-                }
-            }
+            self.update_deforming(d, &boxes, report);
             self.part_boxes = boxes;
         }
+        let Some(parts) = &self.parts else { unreachable!("split above") };
         let place_start = Instant::now();
         let moves: Vec<_> = parts
             .rigid
@@ -490,6 +436,75 @@ impl FramePipeline {
         self.geometry.place(&moves);
         report.build_ms += ms_since(place_start);
         self.tree_dirty = false;
+    }
+
+    /// Rebuilds the deforming part `d` from its moved `boxes` (its order): with the builder in
+    /// the frame, or, for [`PipelineKind::Async`] with PHR, by refitting the traced tree and
+    /// taking the worker's tree when one has landed.
+    fn update_deforming(&mut self, d: usize, boxes: &[Aabb], report: &mut FrameReport) {
+        let build_start = Instant::now();
+        let mut landed = false;
+        match self.settings.builder {
+            Builder::Phr(options) if self.settings.pipeline == PipelineKind::Async => {
+                landed = self.refit_or_land(d, boxes, options, report);
+            }
+            Builder::Phr(options) => {
+                self.tree_age = 0;
+                // Straight to the wide tree the renderer traces: no binary tree, no collapse.
+                let dynamic = self.dynamic.get_or_insert_with(|| DynamicBvh::new(boxes, options));
+                let created_ms = ms_since(build_start);
+                let (timings, wide_time) = self.geometry.set_part_wide(d, |wide| dynamic.update_wide(boxes, wide));
+                report.refit_ms = created_ms + timings.refit.as_secs_f64() * 1e3;
+                report.build_ms += timings.build.as_secs_f64() * 1e3;
+                report.wide_ms = wide_time.as_secs_f64() * 1e3;
+                self.build_cost = timings.build_cost;
+            }
+            builder => {
+                self.tree_age = 0;
+                let bvh = builder.build_with_triangles(boxes, &self.geometry.part_triangles(d));
+                report.build_ms += ms_since(build_start);
+                report.wide_ms = self.geometry.set_part_bvh(d, bvh).as_secs_f64() * 1e3;
+            }
+        }
+        self.sah = wide_sah_cost(self.geometry.part_wide(d), SahConstants::UNIT);
+        if let Some(rebuilder) = &mut self.rebuilder {
+            // The rebuild policy: a new tree once the refitted one has lost enough.
+            if landed {
+                self.landed_sah = self.sah;
+            }
+            if self.sah > self.rebuild_sah_growth * self.landed_sah {
+                rebuilder.start(boxes, self.frame);
+            }
+        }
+    }
+
+    /// The asynchronous update of the deforming part `d`: takes the worker's tree if one has
+    /// landed (the first time, builds one here and starts the worker), refits the traced tree
+    /// to `boxes` and packs the triangles. Returns whether a new tree landed.
+    fn refit_or_land(&mut self, d: usize, boxes: &[Aabb], options: PhrOptions, report: &mut FrameReport) -> bool {
+        let start = Instant::now();
+        let mut landed = None;
+        if self.rebuilder.is_none() {
+            let (rebuilder, first) = AsyncRebuilder::new(boxes, options, self.frame);
+            (self.rebuilder, landed) = (Some(rebuilder), Some(first));
+        }
+        let Some(rebuilder) = &mut self.rebuilder else { unreachable!("made above") };
+        // (The build on this thread, the first time.)
+        report.build_ms += ms_since(start);
+        let mut landed = landed.or_else(|| rebuilder.finished());
+        let refit = self.geometry.refit_part(d, landed.as_mut().map(|l| &mut l.wide));
+        // The refit of the traced tree and the packing of the moved triangles.
+        report.refit_ms = refit.as_secs_f64() * 1e3;
+        let is_new = landed.is_some();
+        self.tree_age = match landed {
+            Some(l) => {
+                self.build_cost = l.timings.build_cost;
+                rebuilder.recycle(l.wide);
+                self.frame - l.frame
+            }
+            None => self.tree_age + 1,
+        };
+        is_new
     }
 
     /// Cuts the scene into the two-level layout's parts and builds their trees.
