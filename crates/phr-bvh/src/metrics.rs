@@ -62,22 +62,34 @@ pub fn sah_cost(bvh: &Bvh, c: SahConstants) -> f64 {
 
 /// [`sah_cost`] of a wide tree: each node is one traversal step (its root included), each
 /// leaf slot costs its primitives. (A wide tree has fewer, larger steps than the binary tree
-/// it was collapsed from, so its cost is lower: compare wide trees with wide trees.)
+/// it was collapsed from, so its cost is lower: compare wide trees with wide trees.) Summed
+/// as [`sah_cost`] is: the same bits for any thread count.
 pub fn wide_sah_cost<const N: usize>(wide: &WideBvh<N>, c: SahConstants) -> f64 {
+    use rayon::prelude::*;
     let Some(root) = wide.nodes.first() else { return 0.0 };
-    let root_area = (0..N).fold(crate::Aabb::EMPTY, |b, i| b.union(root.child_bounds(i))).surface_area() as f64;
+    let root_area = root.bounds().surface_area() as f64;
     if root_area <= 0.0 {
         return 0.0;
     }
-    let slots: f64 = wide
+    let (traversal, intersection) = (c.traversal as f64, c.intersection as f64);
+    let chunk_sums: Vec<f64> = wide
         .nodes
-        .iter()
-        .flat_map(|n| {
-            (0..N).filter(|&i| n.is_used(i)).map(move |i| (n.child_bounds(i).surface_area() as f64, n.count[i]))
+        .par_chunks(1 << 11)
+        .map(|chunk| {
+            let slots = chunk.iter().flat_map(|n| (0..N).filter(|&i| n.is_used(i)).map(move |i| (n, i)));
+            slots
+                .map(|(n, i)| {
+                    let a = n.child_bounds(i).surface_area() as f64;
+                    if n.count[i] == 0 {
+                        traversal * a
+                    } else {
+                        intersection * a * n.count[i] as f64
+                    }
+                })
+                .sum::<f64>()
         })
-        .map(|(a, count)| if count == 0 { c.traversal as f64 * a } else { c.intersection as f64 * a * count as f64 })
-        .sum();
-    (c.traversal as f64 * root_area + slots) / root_area
+        .collect();
+    (traversal * root_area + chunk_sums.iter().sum::<f64>()) / root_area
 }
 
 /// Shape statistics of a tree.

@@ -106,7 +106,7 @@ struct WideCtx<'a, 'b> {
     ctx: &'b Ctx<'a>,
     /// Cuts of at most this many primitives become leaves.
     merge: u32,
-    /// Leaves start at multiples of this in the primitive array.
+    /// The block of entries no small leaf crosses ([`place_leaf`]).
     align: usize,
 }
 

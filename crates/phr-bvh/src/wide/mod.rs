@@ -177,6 +177,18 @@ impl<const N: usize> WideNode<N> {
         (b[MAX_X][i], b[MAX_Y][i], b[MAX_Z][i]) = (a.max.x, a.max.y, a.max.z);
     }
 
+    /// The union of its slots' boxes: each row reduced (empty slots hold +∞ minima and −∞
+    /// maxima, so they drop out).
+    pub fn bounds(&self) -> crate::Aabb {
+        let min = |row: &[f32; N]| row.iter().fold(f32::INFINITY, |a, &b| a.min(b));
+        let max = |row: &[f32; N]| row.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+        let b = &self.bounds;
+        crate::Aabb::new(
+            glam::Vec3::new(min(&b[MIN_X]), min(&b[MIN_Y]), min(&b[MIN_Z])),
+            glam::Vec3::new(max(&b[MAX_X]), max(&b[MAX_Y]), max(&b[MAX_Z])),
+        )
+    }
+
     /// True if slot `i` holds a child (a non-empty box).
     pub fn is_used(&self, i: usize) -> bool {
         !self.child_bounds(i).is_empty()

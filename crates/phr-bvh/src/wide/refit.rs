@@ -5,7 +5,7 @@
 //! A refitted tree is valid but its quality decays as the primitives move; a dynamic scene
 //! traces it while a new tree is built (`phr_render::pipeline`).
 
-use super::{WideBvh, WideNode, PAD};
+use super::WideBvh;
 use crate::aabb::Aabb;
 
 impl<const N: usize> WideBvh<N> {
@@ -20,8 +20,7 @@ impl<const N: usize> WideBvh<N> {
                 let (first, count) = (node.child[s] as usize, node.count[s] as usize);
                 if count > 0 {
                     let leaf = &prims[first..first + count];
-                    let b = leaf.iter().filter(|&&p| p != PAD).fold(Aabb::EMPTY, |b, &p| b.union(boxes[p as usize]));
-                    node.set_child_bounds(s, b);
+                    node.set_child_bounds(s, leaf.iter().fold(Aabb::EMPTY, |b, &p| b.union(boxes[p as usize])));
                 }
             }
         });
@@ -29,15 +28,10 @@ impl<const N: usize> WideBvh<N> {
             let mut node = self.nodes[i];
             for s in 0..N {
                 if node.count[s] == 0 && node.is_used(s) {
-                    node.set_child_bounds(s, node_bounds(&self.nodes[node.child[s] as usize]));
+                    node.set_child_bounds(s, self.nodes[node.child[s] as usize].bounds());
                 }
             }
             self.nodes[i] = node;
         }
     }
-}
-
-/// The union of a node's slots.
-fn node_bounds<const N: usize>(node: &WideNode<N>) -> Aabb {
-    (0..N).fold(Aabb::EMPTY, |b, s| b.union(node.child_bounds(s)))
 }
