@@ -52,6 +52,35 @@ pub fn open_mesh(dir: &Path, name: &str) -> Result<(Geometry, Scene)> {
     Ok((Geometry::new(&scene), scene))
 }
 
+/// The scene argument's word for the built-in scene.
+pub const BUILTIN: &str = "builtin";
+
+/// What a front end's scene argument names, opened: a scene file (.json), a mesh file,
+/// [`BUILTIN`], or the name of a scene of `scenes/suite` (`sponza`, `dragon`, ...). The one
+/// way the command line and the Python module open a scene; files go through
+/// [`load_scene`].
+pub fn open_scene(arg: &str) -> Result<Scene> {
+    if arg == BUILTIN {
+        return Ok(phr_render::scene::builtin::cornell_knot());
+    }
+    Ok(load_scene(&scene_path(arg))?)
+}
+
+/// The file `arg` names: itself if it exists or looks like a path, else the suite scene of
+/// that name if there is one.
+fn scene_path(arg: &str) -> PathBuf {
+    let path = Path::new(arg);
+    let bare_name = path.components().count() == 1 && path.extension().is_none();
+    if !path.exists() && bare_name {
+        if let Some(file) = suite_files(&[arg]).ok().and_then(|f| f.into_iter().next()) {
+            if file.is_file() {
+                return file;
+            }
+        }
+    }
+    path.to_path_buf()
+}
+
 /// Path segments of the thesis's frame (camera ray and five bounces).
 pub const THESIS_MAX_DEPTH: u32 = 6;
 
@@ -116,5 +145,14 @@ mod tests {
             ["bunny/bun_zipper.ply", "dragon/dragon_vrip.ply"]
         );
         assert!(select(SHARED_MESHES, &["nothing".into()]).is_empty());
+    }
+
+    #[test]
+    fn suite_names_open_their_scene_files_and_paths_stay_paths() {
+        assert!(scene_path("sponza").ends_with("scenes/suite/sponza.json"));
+        assert_eq!(scene_path("no_such_scene"), PathBuf::from("no_such_scene"));
+        assert_eq!(scene_path("dir/sponza"), PathBuf::from("dir/sponza"));
+        let err = open_scene("no_such_scene").unwrap_err().to_string();
+        assert!(err.contains("no_such_scene"), "{err}");
     }
 }

@@ -54,6 +54,10 @@ impl BuildReport {
 }
 
 impl Builder {
+    /// The names of the builders with fixed parameters, in the order front ends list them
+    /// (`phr:ALPHA,DELTA` and `phr-thesis:ALPHA,DELTA` name PHR with others).
+    pub const NAMES: &'static [&'static str] = &["lbvh", "phr-fast", "phr-hq", "sweep-sah", "binned-sah", "sbvh"];
+
     pub const PHR_FAST: Builder = Builder::Phr(PhrOptions::FAST);
     pub const PHR_HQ: Builder = Builder::Phr(PhrOptions::HQ);
 

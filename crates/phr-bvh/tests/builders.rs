@@ -9,8 +9,9 @@ use phr_bvh::phr::{build_phr, AuxTree, CutWeight, PhrOptions};
 use phr_bvh::{sah_cost, validate, Builder, SahConstants};
 
 fn all_builders() -> Vec<Builder> {
-    let mut builders: Vec<Builder> =
-        ["lbvh", "phr-fast", "phr-hq", "sweep-sah", "binned-sah", "sbvh"].iter().map(|s| s.parse().unwrap()).collect();
+    let mut builders: Vec<Builder> = Builder::NAMES.iter().map(|s| s.parse().unwrap()).collect();
+    // Every builder is named: one of each variant.
+    assert_eq!(builders.len(), 6);
     for k in [4, 8, 16] {
         builders.push(Builder::PHR_FAST.with_branching(k).unwrap());
         builders.push(Builder::PHR_HQ.with_branching(k).unwrap());
@@ -119,6 +120,9 @@ fn builder_names_parse() {
     assert!("phr:0.4".parse::<Builder>().is_err());
     assert!("phr:x,7".parse::<Builder>().is_err());
     assert!("octree".parse::<Builder>().is_err());
+    for name in Builder::NAMES {
+        assert_eq!(name.parse::<Builder>().unwrap().to_string(), *name);
+    }
     assert!(Builder::default().with_branching(4).is_err());
     assert_eq!(Builder::PHR_HQ.to_string(), "phr-hq");
     let thesis: Builder = "phr-thesis:0.5,6".parse().unwrap();
