@@ -1,0 +1,90 @@
+"""Type stubs of the phr extension module (see the docstrings of the Rust side for details)."""
+
+from typing import Any, Optional, Sequence, Tuple
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+BUILDERS: Sequence[str]
+"""The builders with fixed parameters; ``phr:ALPHA,DELTA`` names PHR with others."""
+
+class Bvh:
+    """A BVH over a triangle mesh, traced as phr's renderer traces it (8-wide, SIMD)."""
+
+    def __init__(
+        self,
+        vertices: npt.ArrayLike,
+        indices: npt.ArrayLike,
+        builder: str = "phr-fast",
+        alpha: Optional[float] = None,
+        delta: Optional[float] = None,
+        branching: int = 2,
+        threads: Optional[int] = None,
+    ) -> None:
+        """Builds over float32/float64 vertices of shape (n, 3) and integer indices of shape
+        (m, 3) (float32 and uint32 are read without a copy). ``builder``: one of
+        ``BUILDERS`` or ``phr:ALPHA,DELTA``; ``alpha``/``delta`` override a PHR builder's;
+        ``branching`` 2 to 16 (PHR only); ``threads``: None for all cores, 1 for the calling
+        thread (several Python threads then trace at once), n for a pool of n threads."""
+    @property
+    def build_ms(self) -> float:
+        """The last build's time in ms (PHR: its auxiliary tree included)."""
+    @property
+    def aux_ms(self) -> float:
+        """The auxiliary tree's part of ``build_ms`` (PHR only)."""
+    @property
+    def wide_ms(self) -> float:
+        """Time to make the traced 8-wide tree and pack its triangles, ms."""
+    @property
+    def builder(self) -> str: ...
+    def __len__(self) -> int: ...
+    def refit(self, vertices: npt.ArrayLike) -> float:
+        """Moves the vertices (same count) and refits the tree; returns ms."""
+    def rebuild(self) -> float:
+        """Builds again over the current vertices (PHR: from its refitted auxiliary tree);
+        returns the build's ms."""
+    def stats(self, traversal: float = 1.0, intersection: float = 1.0) -> dict[str, Any]:
+        """``sah_cost``, ``build_cost`` (Σ|cut|, PHR only), ``nodes``, ``leaves``, ``depth``,
+        ``mean_leaf_depth``, ``max_leaf_size``, ``mean_leaf_size``, ``wide_nodes``, timings."""
+    def intersect(
+        self, origins: npt.ArrayLike, directions: npt.ArrayLike, tmin: float = 0.0, tmax: float = ...
+    ) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.int64], npt.NDArray[np.float32]]:
+        """Closest hits: ``(t, prim, uv)``; t = inf and prim = -1 on a miss; uv of shape (n, 2)."""
+    def occluded(
+        self, origins: npt.ArrayLike, directions: npt.ArrayLike, tmin: float = 0.0, tmax: float = ...
+    ) -> npt.NDArray[np.bool_]:
+        """Whether anything is hit within (tmin, tmax] along each ray."""
+
+class Scene:
+    """A scene file, mesh, ``"builtin"`` or suite scene name, loaded once."""
+
+    def __init__(self, scene: str) -> None: ...
+    @property
+    def views(self) -> list[str]: ...
+    @property
+    def triangle_count(self) -> int: ...
+    @property
+    def sphere_count(self) -> int: ...
+    @property
+    def settings(self) -> dict[str, int]: ...
+    def render(scene: str, **options: Any) -> npt.NDArray[np.float32]:
+    """``Scene(scene).render(**options)``."""
+
+def tune(
+    vertices: npt.ArrayLike,
+    indices: npt.ArrayLike,
+    width: int = 256,
+    height: int = 256,
+    method: str = "bo",
+    objective: str = "thesis",
+    budget: int = 20,
+    seed: int = 0,
+    alphas: Optional[Sequence[float]] = None,
+    deltas: Optional[Sequence[float]] = None,
+    omega_p: float = ...,
+    omega_r: float = ...,
+    time_budget_ms: Optional[int] = None,
+    threads: Optional[int] = None,
+) -> dict[str, Any]:
+    """Chooses PHR's alpha and delta (``"bo"`` or ``"grid"``; ``"thesis"`` or ``"frame-time"``)."""
