@@ -5,6 +5,7 @@
 
 use glam::Vec3;
 use numpy::{PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArray, PyUntypedArrayMethods};
+use phr_render::scene::MAX_COORDINATE;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
@@ -30,6 +31,21 @@ impl Floats<'_> {
         // SAFETY: `Vec3` is `repr(C)` of three f32 (alignment 4, size 12), the slice's length
         // is a multiple of 3 (shape (n, 3)), and f32 slices are 4-aligned.
         unsafe { std::slice::from_raw_parts(s.as_ptr().cast::<Vec3>(), s.len() / 3) }
+    }
+}
+
+/// `points` as mesh vertices: every coordinate finite and within the renderer's
+/// [`MAX_COORDINATE`] (beyond it squared distances overflow f32), else a `ValueError` naming
+/// the first vertex that is not.
+pub fn check_vertices(points: &[Vec3]) -> PyResult<()> {
+    use rayon::prelude::*;
+    let bad = points.par_iter().position_first(|p| !(p.is_finite() && p.abs().max_element() <= MAX_COORDINATE));
+    match bad {
+        Some(i) => Err(PyValueError::new_err(format!(
+            "vertices[{i}] = {:?}: coordinates must be finite and at most {MAX_COORDINATE:e} in magnitude",
+            points[i].to_array()
+        ))),
+        None => Ok(()),
     }
 }
 

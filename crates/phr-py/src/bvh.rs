@@ -2,7 +2,7 @@
 //! traces it (the 8-wide tree with triangles packed in 4-lane blocks), refitted and rebuilt
 //! when the vertices move.
 
-use crate::arrays::floats;
+use crate::arrays::{check_vertices, floats};
 use crate::pool::Pool;
 use glam::Vec3;
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
@@ -131,6 +131,7 @@ impl Bvh {
         let pool = Pool::new(threads)?;
         let vertices = floats("vertices", vertices)?;
         let points = vertices.as_vec3s();
+        check_vertices(points)?;
         let tris = crate::arrays::indices(indices, points.len())?;
         let mut bvh = Bvh {
             builder,
@@ -163,6 +164,7 @@ impl Bvh {
     fn refit(&mut self, py: Python<'_>, vertices: &Bound<'_, PyAny>) -> PyResult<f64> {
         let vertices = floats("vertices", vertices)?;
         let points = vertices.as_vec3s();
+        check_vertices(points)?;
         if points.len() != self.vertex_count {
             return Err(PyValueError::new_err(format!(
                 "refit needs the same {} vertices, got {}",

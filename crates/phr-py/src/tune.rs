@@ -93,6 +93,7 @@ pub fn tune<'py>(
     let pool = Pool::new(threads)?;
     let v = arrays::floats("vertices", vertices)?;
     let points = v.as_vec3s();
+    arrays::check_vertices(points)?;
     let tris = arrays::indices(indices, points.len())?;
     let triangles = tris.as_triples();
     if triangles.is_empty() {

@@ -6,7 +6,8 @@
 //! made.
 //!
 //! trimesh, matplotlib and embreex (the example and the hits against Embree's) are installed
-//! too; where they cannot be, their tests are reported skipped with the reason.
+//! too; where they cannot be, their tests are reported skipped with the reason, and where
+//! they are, a skipped test fails the run.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -42,8 +43,9 @@ fn run(command: &mut Command, what: &str) {
     );
 }
 
-/// The virtual environment's `bin` folder, with pytest, numpy and maturin.
-fn venv() -> PathBuf {
+/// The virtual environment's `bin` folder, with pytest, numpy and maturin, and whether the
+/// optional packages (trimesh, matplotlib, embreex) installed too.
+fn venv() -> (PathBuf, bool) {
     let venv = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("phr-py-venv");
     let python = venv.join("bin/python3");
     if !python.exists() {
@@ -64,7 +66,7 @@ fn venv() -> PathBuf {
             String::from_utf8_lossy(&out.stderr)
         );
     }
-    venv.join("bin")
+    (venv.join("bin"), out.status.success())
 }
 
 /// `PATH` with `dir` first (maturin's build backend runs the `maturin` it finds there).
@@ -77,7 +79,7 @@ fn path_with(dir: &Path) -> std::ffi::OsString {
 #[test]
 fn python_package_tests_pass() {
     let root = workspace_dir();
-    let bin = venv();
+    let (bin, optional_installed) = venv();
     let path = path_with(&bin);
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     run(
@@ -104,4 +106,7 @@ fn python_package_tests_pass() {
     let report = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
     println!("{report}");
     assert!(out.status.success(), "the Python tests failed:\n{report}");
+    // With every package installed nothing may be skipped (a skip would hide a check).
+    let summary = report.lines().rev().find(|l| l.contains(" passed")).unwrap_or_default();
+    assert!(!optional_installed || !summary.contains("skipped"), "Python tests were skipped:\n{report}");
 }

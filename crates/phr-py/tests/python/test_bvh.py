@@ -135,6 +135,13 @@ def test_inputs_are_converted_or_refused_with_a_clear_message():
         phr.Bvh(vertices, np.where(indices == 7, 150, indices).astype(np.uint32))
     with pytest.raises(ValueError, match="found -1"):
         phr.Bvh(vertices, np.where(indices == 7, -1, indices.astype(np.int64)))
+    for bad in [np.nan, np.inf, 1e30]:
+        moved = vertices.copy()
+        moved[17, 1] = bad
+        with pytest.raises(ValueError, match=r"vertices\[17\].*finite and at most 1e18"):
+            phr.Bvh(moved, indices)
+        with pytest.raises(ValueError, match=r"vertices\[17\]"):
+            phr.Bvh(vertices, indices).refit(moved)
     with pytest.raises(ValueError, match='unknown builder "octree"'):
         phr.Bvh(vertices, indices, builder="octree")
     with pytest.raises(ValueError, match="PHR's parameters"):
