@@ -3,7 +3,8 @@
 //! The data path, one module per step: scene file ([`scene::json`]) or mesh file ([`load`])
 //! → [`scene::Scene`] → triangles and spheres with a BVH ([`geometry`]) → camera rays
 //! ([`camera`]) → hits → shading ([`material`], [`integrator`]) → [`film`] → image files
-//! ([`output`]). [`render`] runs the progressive, multi-threaded loop; [`animation`] poses
+//! ([`output`]). [`render`] runs the progressive, multi-threaded loop; [`motion`] describes
+//! what moves (plain data the loaders fill in), [`animation`] poses
 //! dynamic scenes and [`pipeline`] runs the per-frame loop of the interactive viewer.
 
 pub mod animation;
@@ -15,6 +16,7 @@ pub mod integrator;
 pub mod lights;
 pub mod load;
 pub mod material;
+pub mod motion;
 pub mod output;
 pub mod pipeline;
 pub mod rebuild;

@@ -9,9 +9,10 @@
 //! directly and through a small glTF file written by the test.
 
 use glam::{Quat, Vec3};
-use phr_render::animation::{Animation, AnimationTarget, Animator, Interpolation, Track};
+use phr_render::animation::Animator;
 use phr_render::geometry::Geometry;
 use phr_render::load::load_mesh;
+use phr_render::motion::{Animation, AnimationTarget, Interpolation, Track};
 use phr_render::scene::json::parse_scene;
 use phr_render::scene::load_scene;
 use std::path::{Path, PathBuf};

@@ -12,7 +12,7 @@ use clap::{Args, ValueEnum};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::Builder;
-use phr_render::animation::{Animation, AnimationTarget, Motion as VertexMotion, ObjectAnimation};
+use phr_render::motion::{Animation, AnimationTarget, Motion as VertexMotion, ObjectAnimation};
 use phr_render::output::{write_atomically, write_image};
 use phr_render::pipeline::{FramePipeline, FrameReport, PipelineSettings, ViewMode};
 use phr_render::Scene;

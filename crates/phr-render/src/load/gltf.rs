@@ -13,8 +13,8 @@
 //! skipped; sparse accessors, morph targets and skins are not supported; textures are not read.
 
 use super::{check_finite, finish, GltfMaterial, Location, MeshData, SourceCamera, SourceMaterial};
-use crate::animation::{AnimatedNode, AnimatedPart, Interpolation, NodeAnimation, Track};
 use crate::error::LoadError;
+use crate::motion::{AnimatedNode, AnimatedPart, Interpolation, NodeAnimation, Track};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::animation::util::ReadOutputs;
 use ::gltf::animation::Property;

@@ -70,7 +70,7 @@ pub struct MeshData {
     /// Cameras the file defines (glTF only).
     pub cameras: Vec<SourceCamera>,
     /// Keyframed node animations (glTF only), posing ranges of `positions`.
-    pub animation: Option<Box<crate::animation::NodeAnimation>>,
+    pub animation: Option<Box<crate::motion::NodeAnimation>>,
 }
 
 impl MeshData {

@@ -14,11 +14,11 @@
 
 use super::materials::{map_source_material, MtlMapping};
 use super::{Background, Mesh, RenderSettings, Scene, SphereObject};
-use crate::animation::{Animation, AnimationTarget, Motion, ObjectAnimation};
 use crate::camera::CameraDesc;
 use crate::error::LoadError;
 use crate::load::{load_mesh, MeshData};
 use crate::material::Material;
+use crate::motion::{Animation, AnimationTarget, Motion, ObjectAnimation};
 use glam::{Mat4, Quat, Vec3};
 use indexmap::IndexMap;
 use phr_bvh::sphere::Sphere;
@@ -73,7 +73,7 @@ enum MotionsFile {
     Many(Vec<MotionFile>),
 }
 
-/// A procedural motion (see [`crate::animation::Motion`]).
+/// A procedural motion (see [`crate::motion::Motion`]).
 #[derive(Clone, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 enum MotionFile {

@@ -9,9 +9,9 @@ pub mod builtin;
 pub mod json;
 pub mod materials;
 
-use crate::animation::ObjectAnimation;
 use crate::camera::CameraDesc;
 use crate::material::Material;
+use crate::motion::ObjectAnimation;
 use glam::Vec3;
 use phr_bvh::sphere::Sphere;
 
@@ -115,7 +115,7 @@ pub struct Scene {
     /// Named views; the first is the default.
     pub views: Vec<(String, CameraDesc)>,
     pub settings: RenderSettings,
-    /// What moves (empty for a static scene); see [`crate::animation`].
+    /// What moves (empty for a static scene); see [`crate::motion`].
     pub animations: Vec<ObjectAnimation>,
 }
 
