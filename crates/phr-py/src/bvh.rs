@@ -26,11 +26,16 @@ const RAY_CHUNK: usize = 256;
 /// A BVH over a triangle mesh, traced as phr's renderer traces it.
 ///
 /// `Bvh(vertices, indices, builder="phr-fast", alpha=None, delta=None, branching=2,
-/// threads=None)`: `vertices` float32 or float64 of shape (n, 3), `indices` integers of shape
-/// (m, 3) (float32 and uint32 C-contiguous arrays are read without a copy). `builder`: one of
-/// `phr.BUILDERS` or `"phr:ALPHA,DELTA"`; `alpha` and `delta` override a PHR builder's;
-/// `branching` 2 to 16 (PHR only). `threads`: None for all cores, 1 for the calling thread
-/// (several Python threads then trace at once), n for a pool of n threads.
+/// threads=None)`: `vertices` a float array of shape (n, 3), `indices` an integer array of
+/// shape (m, 3) (float32 and uint32, C-contiguous, are read without a copy; others are
+/// converted once). `builder`: one of `phr.BUILDERS` or `"phr:ALPHA,DELTA"`; `alpha` and
+/// `delta` override a PHR builder's; `branching` 2 to 16 (PHR only). `threads`: None for all
+/// cores; 1 to trace on the calling thread (several Python threads then trace at once; builds
+/// run on one thread); n for a pool of n threads.
+///
+/// Calls release the GIL and read their input arrays in place: do not write to them from
+/// another thread during a call. Any number of threads may trace one `Bvh` at once; `refit`
+/// or `rebuild` while another thread traces it raises `RuntimeError` ("Already borrowed").
 #[pyclass(module = "phr")]
 pub struct Bvh {
     builder: Builder,
@@ -131,7 +136,6 @@ impl Bvh {
         let pool = Pool::new(threads)?;
         let vertices = floats("vertices", vertices)?;
         let points = vertices.as_vec3s();
-        check_vertices(points)?;
         let tris = crate::arrays::indices(indices, points.len())?;
         let mut bvh = Bvh {
             builder,
@@ -151,6 +155,7 @@ impl Bvh {
         };
         let pool = bvh.pool.clone();
         py.detach(|| {
+            check_vertices(points)?;
             pool.install(|| {
                 bvh.set_vertices(points);
                 bvh.build();
@@ -164,7 +169,6 @@ impl Bvh {
     fn refit(&mut self, py: Python<'_>, vertices: &Bound<'_, PyAny>) -> PyResult<f64> {
         let vertices = floats("vertices", vertices)?;
         let points = vertices.as_vec3s();
-        check_vertices(points)?;
         if points.len() != self.vertex_count {
             return Err(PyValueError::new_err(format!(
                 "refit needs the same {} vertices, got {}",
@@ -174,6 +178,7 @@ impl Bvh {
         }
         let pool = self.pool.clone();
         py.detach(|| {
+            check_vertices(points)?;
             pool.install(|| {
                 let start = Instant::now();
                 self.set_vertices(points);
@@ -211,10 +216,23 @@ impl Bvh {
         self.wide_ms
     }
 
-    /// The builder's name (`phr-fast`, `sbvh`, ...).
+    /// The builder's name (`phr-fast`, `sbvh`, `phr:0.45,7`, ...), as `Bvh(builder=...)`
+    /// takes it.
     #[getter]
     fn builder(&self) -> String {
-        self.builder.to_string()
+        match self.builder {
+            Builder::Phr(o) => Builder::Phr(PhrOptions { branching: 2, ..o }).to_string(),
+            b => b.to_string(),
+        }
+    }
+
+    /// Children per node of the built tree (2 unless a PHR builder was given another).
+    #[getter]
+    fn branching(&self) -> u32 {
+        match self.builder {
+            Builder::Phr(o) => o.branching,
+            _ => 2,
+        }
     }
 
     fn __len__(&self) -> usize {
@@ -233,7 +251,8 @@ impl Bvh {
     fn stats<'py>(&self, py: Python<'py>, traversal: f32, intersection: f32) -> PyResult<Bound<'py, PyDict>> {
         let s = tree_stats(&self.bvh);
         let d = PyDict::new(py);
-        d.set_item("builder", self.builder.to_string())?;
+        d.set_item("builder", self.builder())?;
+        d.set_item("branching", self.branching())?;
         d.set_item("triangles", self.triangles.len())?;
         d.set_item("sah_cost", sah_cost(&self.bvh, SahConstants { traversal, intersection }))?;
         d.set_item("build_cost", self.build_cost)?;
@@ -253,7 +272,8 @@ impl Bvh {
     /// Closest hits of the rays `origins[i] + t directions[i]`, `tmin < t <= tmax` (t in units
     /// of the direction's length). Returns `(t, prim, uv)`: float32 distances (inf on a miss),
     /// int64 triangle indices (-1 on a miss) and float32 barycentrics of shape (n, 2) (the hit
-    /// is `(1 - u - v) p0 + u p1 + v p2`). Rays with a non-finite origin or direction miss.
+    /// is `(1 - u - v) p0 + u p1 + v p2`). Rays with a non-finite origin or direction miss, and
+    /// so may rays from beyond ±1e18, where f32 distances overflow.
     #[pyo3(signature = (origins, directions, tmin = 0.0, tmax = f32::INFINITY))]
     #[allow(clippy::type_complexity)]
     fn intersect<'py>(

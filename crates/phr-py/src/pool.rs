@@ -1,5 +1,6 @@
 //! The threads a call runs on. `threads=None`: rayon's global pool (all cores). `threads=1`:
-//! the calling thread, so that several Python threads trace at once, each on its own core.
+//! tracing on the calling thread, so that several Python threads trace at once, each on its
+//! own core (builds, which use rayon inside, run on a one-thread pool made for the call).
 //! Any other number: a pool of that many threads, kept by the object.
 
 use pyo3::exceptions::PyValueError;

@@ -93,7 +93,6 @@ pub fn tune<'py>(
     let pool = Pool::new(threads)?;
     let v = arrays::floats("vertices", vertices)?;
     let points = v.as_vec3s();
-    arrays::check_vertices(points)?;
     let tris = arrays::indices(indices, points.len())?;
     let triangles = tris.as_triples();
     if triangles.is_empty() {
@@ -101,6 +100,7 @@ pub fn tune<'py>(
     }
     let search = SearchBox::spanning(&alphas, &deltas);
     let result = py.detach(|| {
+        arrays::check_vertices(points)?;
         pool.install(|| {
             let scene = thesis_scene(points, triangles);
             let mut geometry = Geometry::new(&scene);
