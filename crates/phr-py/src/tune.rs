@@ -24,6 +24,7 @@ use std::time::Duration;
 /// path segments), seen by the camera that frames it: what the frame-time objective renders.
 fn thesis_scene(vertices: &[glam::Vec3], triangles: &[[u32; 3]]) -> phr_render::Scene {
     let mut scene = phr_render::Scene::default();
+    // (Its albedo is the thesis's once `apply_thesis_setting` has run.)
     let material = scene.add_material("diffuse", Material::Lambertian { albedo: glam::Vec3::ONE });
     scene.meshes.push(Mesh {
         name: "mesh".into(),
@@ -85,11 +86,15 @@ pub fn tune<'py>(
         "bo" => return Err(PyValueError::new_err(format!("budget must be at least 3, got {budget}"))),
         other => return Err(PyValueError::new_err(format!("unknown method {other:?} (use \"bo\" or \"grid\")"))),
     };
-    if !["thesis", "frame-time"].contains(&objective) {
-        return Err(PyValueError::new_err(format!(
-            "unknown objective {objective:?} (use \"thesis\" or \"frame-time\")"
-        )));
-    }
+    let frame_time = match objective {
+        "thesis" => false,
+        "frame-time" => true,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "unknown objective {other:?} (use \"thesis\" or \"frame-time\")"
+            )))
+        }
+    };
     let pool = Pool::new(threads)?;
     let v = arrays::floats("vertices", vertices)?;
     let points = v.as_vec3s();
@@ -99,24 +104,22 @@ pub fn tune<'py>(
         return Err(PyValueError::new_err("the mesh has no triangles"));
     }
     let search = SearchBox::spanning(&alphas, &deltas);
-    let result = py.detach(|| {
+    let (result, builds) = py.detach(|| {
         arrays::check_vertices(points)?;
         pool.install(|| {
             let scene = thesis_scene(points, triangles);
             let mut geometry = Geometry::new(&scene);
             let evaluator = PhrEvaluator::new(&geometry.boxes, PhrOptions::FAST);
-            let objective = match objective {
-                "thesis" => ObjectiveKind::Thesis { width, height, omega_p, omega_r },
-                _ => {
-                    let view = scene.views[0].1.clone();
-                    ObjectiveKind::FrameTime(calibrate(&evaluator, &scene, &mut geometry, &view, &size, &search))
-                }
+            let objective = if frame_time {
+                let view = scene.views[0].1.clone();
+                ObjectiveKind::FrameTime(calibrate(&evaluator, &scene, &mut geometry, &view, &size, &search))
+            } else {
+                ObjectiveKind::Thesis { width, height, omega_p, omega_r }
             };
             let result = run_tune(&evaluator, &TuneOptions { method, objective, search, cache: None });
             (result, evaluator.builds())
         })
     })?;
-    let (result, builds) = result;
     let out = PyDict::new(py);
     out.set_item("alpha", result.best.alpha)?;
     out.set_item("delta", result.best.delta)?;
