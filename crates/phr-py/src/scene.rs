@@ -106,9 +106,9 @@ impl Scene {
 
     /// Path traces a view: `spp` frames of one sample per pixel, accumulated, as
     /// `phr render` (same arguments, same defaults: the file's settings, builder `sbvh`,
-    /// seed 0). Returns the linear mean radiance, float32 of shape (height, width, 3), top row
+    /// seed 0, integrator `path`: light sampling with MIS; `implicit`: the thesis's). Returns the linear mean radiance, float32 of shape (height, width, 3), top row
     /// first.
-    #[pyo3(signature = (width = None, height = None, spp = None, view = None, seed = 0, max_depth = None, builder = "sbvh", nee = false, threads = None))]
+    #[pyo3(signature = (width = None, height = None, spp = None, view = None, seed = 0, max_depth = None, builder = "sbvh", integrator = "path", threads = None))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
         &self,
@@ -120,7 +120,7 @@ impl Scene {
         seed: u64,
         max_depth: Option<u32>,
         builder: &str,
-        nee: bool,
+        integrator: &str,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, numpy::PyArray3<f32>>> {
         let s = self.scene.settings;
@@ -140,6 +140,11 @@ impl Scene {
             ))
         })?;
         let builder: Builder = builder.parse().map_err(PyValueError::new_err)?;
+        let sample_lights = match integrator {
+            "path" => true,
+            "implicit" => false,
+            other => return Err(PyValueError::new_err(format!("integrator {other:?}: use \"path\" or \"implicit\""))),
+        };
         let pool = Pool::new(threads)?;
         let pixels = py.detach(|| {
             pool.install(|| {
@@ -150,7 +155,8 @@ impl Scene {
                     *cached = Some((builder, geometry));
                 }
                 let (_, geometry) = cached.as_ref().expect("built above");
-                let lights = nee.then(|| LightSet::new(geometry, &self.scene.materials));
+                let lights =
+                    sample_lights.then(|| LightSet::new(geometry, &self.scene.materials, &self.scene.background));
                 let renderer =
                     Renderer::new(&self.scene, geometry, &camera, &settings, lights.as_ref()).with_seed(seed);
                 let mut film = Film::new(settings.width, settings.height);

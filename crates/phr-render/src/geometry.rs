@@ -30,6 +30,7 @@ use crate::scene::{Scene, SphereObject};
 use glam::{Affine3A, Vec3};
 use phr_bvh::builder::BuildReport;
 use phr_bvh::instance::{Instance, TopLevel};
+use phr_bvh::sphere::Sphere;
 use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
 use phr_bvh::wide::{WideStats, PAD};
 use phr_bvh::{closest_hit_counted, Aabb, Builder, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
@@ -488,6 +489,20 @@ impl Geometry {
         match self.prim_part.get(prim).and_then(|&k| self.parts.get(k as usize)) {
             Some(part) if !part.instance.is_identity() => t.map(|v| part.instance.world_point(v)),
             _ => t,
+        }
+    }
+
+    /// Sphere `i` (of [`Geometry::spheres`]) where it is in the world. Under a transform
+    /// the radius follows its scale (the cube root of the volume's change): exact for
+    /// rotations, translations and uniform scales, the rigid motions parts get.
+    pub fn world_sphere(&self, i: usize) -> Sphere {
+        let s = self.spheres[i].sphere;
+        match self.prim_part.get(self.triangles.len() + i).and_then(|&k| self.parts.get(k as usize)) {
+            Some(part) if !part.instance.is_identity() => Sphere {
+                center: part.instance.world_point(s.center),
+                radius: s.radius * part.instance.to_world.matrix3.determinant().abs().cbrt(),
+            },
+            _ => s,
         }
     }
 

@@ -5,18 +5,25 @@
 //! It is exactly the estimator of the Mitsuba references in `shared/reference`, so renders can
 //! be checked against them with `compare_images.py --test-spp N`.
 //!
-//! With a [`LightSet`] (`lights: Some`), diffuse hits also sample the emissive triangles
-//! directly (next-event estimation, see [`crate::lights`]): the same expected image, far less
-//! noise from small lights.
+//! With a [`LightSet`] (`lights: Some`) it becomes the path tracer of pbrt and Mitsuba's
+//! `path` integrator: at every diffuse hit one light (an emissive triangle or sphere, or the
+//! sky) is sampled through a shadow ray, and the light a path's own bounce reaches is weighed
+//! against it by multiple importance sampling (the power heuristic), so neither small lights
+//! nor large ones are noisy; after [`RR_START`] segments Russian roulette ends paths whose
+//! throughput has become small. The expected image is the same (the reference checks run
+//! with both).
 
 use crate::geometry::Geometry;
-use crate::geometry::SurfacePoint;
-use crate::lights::LightSet;
+use crate::lights::{power_heuristic, LightSet};
 use crate::material::{Interaction, Material};
 use crate::sampler::Pcg32;
 use crate::scene::Background;
 use glam::Vec3;
 use phr_bvh::Ray;
+use std::f32::consts::FRAC_1_PI;
+
+/// Russian roulette starts after this many segments (the camera ray is the first).
+pub const RR_START: u32 = 3;
 
 pub struct PathTracer<'a> {
     pub geometry: &'a Geometry,
@@ -24,7 +31,8 @@ pub struct PathTracer<'a> {
     pub background: &'a Background,
     /// Maximum number of segments per path, the camera ray included.
     pub max_depth: u32,
-    /// Explicit light sampling at diffuse hits (`None`: implicit lights only, the thesis's).
+    /// Light sampling with MIS and Russian roulette (`None`: implicit lights only, the
+    /// thesis's estimator).
     pub lights: Option<&'a LightSet>,
 }
 
@@ -35,16 +43,32 @@ pub struct PathSample {
     pub rays: u32,
 }
 
+/// A diffuse vertex whose lights were sampled: what the next segment's MIS weight needs.
+#[derive(Clone, Copy)]
+struct LitVertex {
+    position: Vec3,
+    /// The unit normal on the side the path left from.
+    facing: Vec3,
+    /// Density of the direction the path took, by BSDF sampling.
+    pdf: f32,
+}
+
 impl PathTracer<'_> {
     /// Traces one path starting with `ray` (unit direction not required).
-    pub fn trace(&self, mut ray: Ray, rng: &mut Pcg32) -> PathSample {
+    #[inline]
+    pub fn trace(&self, ray: Ray, rng: &mut Pcg32) -> PathSample {
+        match self.lights {
+            Some(lights) => self.trace_with_lights(ray, lights, rng),
+            None => self.trace_implicit(ray, rng),
+        }
+    }
+
+    /// The thesis's estimator: BSDF sampling alone.
+    fn trace_implicit(&self, mut ray: Ray, rng: &mut Pcg32) -> PathSample {
         let mut radiance = Vec3::ZERO;
         let mut throughput = Vec3::ONE;
         let mut rays = 0;
-        let lights = self.lights.filter(|l| !l.is_empty());
-        // The last bounce was diffuse and sampled the lights: their emission is counted.
-        let mut sampled_lights = false;
-        for segment in 0..self.max_depth {
+        for _ in 0..self.max_depth {
             rays += 1;
             let Some(hit) = self.geometry.intersect(&ray) else {
                 radiance += throughput * self.background.radiance(ray.dir.normalize());
@@ -52,19 +76,7 @@ impl PathTracer<'_> {
             };
             let surface = self.geometry.surface_point(&ray, &hit);
             let material = &self.materials[surface.material as usize];
-            if !(sampled_lights && lights.is_some_and(|l| l.contains(hit.prim))) {
-                radiance += throughput * material.emitted(surface.front);
-            }
-            sampled_lights = false;
-            if let (Some(lights), Material::Lambertian { albedo }) = (lights, material) {
-                // A light seen from here would arrive on segment + 1: only within max_depth.
-                if segment + 1 < self.max_depth {
-                    let (direct, shadow_rays) = self.direct_light(lights, &surface, *albedo, rng);
-                    radiance += throughput * direct;
-                    rays += shadow_rays;
-                    sampled_lights = true;
-                }
-            }
+            radiance += throughput * material.emitted(surface.front);
             match material.scatter(ray.dir, surface.normal, surface.front, rng) {
                 Interaction::Absorb => break,
                 Interaction::Scatter { dir, weight } => {
@@ -76,37 +88,82 @@ impl PathTracer<'_> {
         PathSample { radiance, rays }
     }
 
-    /// One light sample's direct light at a Lambertian surface with `albedo`: the BRDF
-    /// `albedo / π`, both cosines, the squared distance and the area density. Returns the
-    /// radiance and the shadow rays traced.
-    fn direct_light(&self, lights: &LightSet, surface: &SurfacePoint, albedo: Vec3, rng: &mut Pcg32) -> (Vec3, u32) {
-        let Some(light) = lights.sample(self.geometry, rng) else { return (Vec3::ZERO, 0) };
-        // The side of the surface the path arrived on.
-        let n = if surface.front { surface.normal } else { -surface.normal };
-        let to_light = light.point - surface.position;
-        let distance2 = to_light.length_squared();
-        if distance2 <= 0.0 || !distance2.is_finite() {
-            return (Vec3::ZERO, 0);
+    /// Light sampling at diffuse hits, MIS with BSDF sampling, Russian roulette.
+    fn trace_with_lights(&self, mut ray: Ray, lights: &LightSet, rng: &mut Pcg32) -> PathSample {
+        let mut radiance = Vec3::ZERO;
+        let mut throughput = Vec3::ONE;
+        let mut rays = 0;
+        // The previous vertex, if it sampled the lights (`None`: the camera, or a mirror or
+        // glass, whose direction no light sample could have taken).
+        let mut lit: Option<LitVertex> = None;
+        for segment in 0..self.max_depth {
+            rays += 1;
+            let Some(hit) = self.geometry.intersect(&ray) else {
+                let dir = ray.dir.normalize();
+                let weight = lit.map_or(1.0, |v| power_heuristic(v.pdf, lights.pdf_sky(v.facing, dir)));
+                radiance += throughput * self.background.radiance(dir) * weight;
+                break;
+            };
+            let surface = self.geometry.surface_point(&ray, &hit);
+            let material = &self.materials[surface.material as usize];
+            let emitted = material.emitted(surface.front);
+            if emitted != Vec3::ZERO {
+                let weight = lit.map_or(1.0, |v| {
+                    let light_pdf =
+                        lights.pdf_hit(self.geometry, hit.prim, v.position, surface.position, surface.normal);
+                    power_heuristic(v.pdf, light_pdf)
+                });
+                radiance += throughput * emitted * weight;
+            }
+            // Neither a light sample nor a bounce from here would arrive within max_depth.
+            if segment + 1 >= self.max_depth {
+                break;
+            }
+            let facing = if surface.front { surface.normal } else { -surface.normal };
+            let diffuse = match material {
+                Material::Lambertian { albedo } => Some(*albedo),
+                _ => None,
+            };
+            if let Some(albedo) = diffuse {
+                if let Some(light) = lights.sample(self.geometry, surface.position, facing, rng) {
+                    let cos = facing.dot(light.dir);
+                    if cos > 0.0 && light.radiance != Vec3::ZERO {
+                        rays += 1;
+                        let origin = surface.spawn_origin(light.dir);
+                        // To the light's point, stopping short of it by a relative margin well
+                        // above float error; to the sky, without end.
+                        let shadow = match light.point {
+                            Some(p) => Ray::with_interval(origin, p - origin, 0.0, 1.0 - 1e-4),
+                            None => Ray::new(origin, light.dir),
+                        };
+                        if !self.geometry.occluded(&shadow) {
+                            let bsdf_pdf = cos * FRAC_1_PI;
+                            let weight = power_heuristic(light.pdf, bsdf_pdf);
+                            // BRDF albedo / π, the cosine, over the light's density.
+                            radiance += throughput * albedo * light.radiance * (bsdf_pdf * weight / light.pdf);
+                        }
+                    }
+                }
+            }
+            match material.scatter(ray.dir, surface.normal, surface.front, rng) {
+                Interaction::Absorb => break,
+                Interaction::Scatter { dir, weight } => {
+                    throughput *= weight;
+                    lit = diffuse.map(|_| {
+                        let pdf = facing.dot(dir.normalize()).max(0.0) * FRAC_1_PI;
+                        LitVertex { position: surface.position, facing, pdf }
+                    });
+                    ray = Ray::new(surface.spawn_origin(dir), dir);
+                }
+            }
+            if segment + 1 >= RR_START {
+                let survive = throughput.max_element().min(1.0);
+                if rng.next_f32() >= survive {
+                    break;
+                }
+                throughput /= survive;
+            }
         }
-        let distance = distance2.sqrt();
-        let wi = to_light / distance;
-        let cos_surface = n.dot(wi);
-        let cos_light = -light.normal.dot(wi);
-        if cos_surface <= 0.0 {
-            return (Vec3::ZERO, 0);
-        }
-        let emitted = self.materials[light.material as usize].emitted(cos_light > 0.0);
-        if emitted == Vec3::ZERO {
-            return (Vec3::ZERO, 0);
-        }
-        let origin = surface.spawn_origin(wi);
-        // Stop short of the light itself (by a relative margin well above float error).
-        let shadow = Ray::with_interval(origin, light.point - origin, 0.0, 1.0 - 1e-4);
-        if self.geometry.occluded(&shadow) {
-            return (Vec3::ZERO, 1);
-        }
-        let brdf = albedo * std::f32::consts::FRAC_1_PI;
-        let geometry_term = cos_surface * cos_light.abs() / distance2;
-        (brdf * emitted * (geometry_term / light.pdf_area), 1)
+        PathSample { radiance, rays }
     }
 }

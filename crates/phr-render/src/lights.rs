@@ -1,111 +1,307 @@
 //! Explicit light sampling (next-event estimation), beyond the thesis's implicit lights.
 //!
-//! The emissive triangles of a scene form a [`LightSet`]; at every diffuse (Lambertian) hit the
-//! path tracer picks one of them with probability proportional to its power (area × brightest
-//! emission channel), picks a point on it uniformly and, if a shadow ray finds nothing in
-//! between, adds its direct light. Paths that then hit one of these triangles after a diffuse
-//! bounce do not count its emission again, so the estimator stays unbiased. Emissive spheres
-//! and the sky stay implicit. Small lights (the Cornell box's) converge many times faster.
+//! A [`LightSet`] holds every emitter of a scene: the emissive triangles, the emissive spheres
+//! and the sky (the background, when it is not black). At a diffuse hit the path tracer asks it
+//! for one direction towards a light ([`LightSet::sample`]) and traces a shadow ray; the same
+//! light may also be reached by the path's own next bounce. Multiple importance sampling
+//! weighs the two ways, so each needs the other's density: [`LightSet::pdf_hit`] and
+//! [`LightSet::pdf_sky`] give the density with which `sample` would have chosen a direction
+//! the path took. All densities are with respect to solid angle at the shading point.
+//!
+//! How each emitter is sampled:
+//! - the sky, with probability [`SKY_SHARE`] when there are other lights too (1 when it is the
+//!   only one): a cosine-weighted direction around the surface's normal, which is exact for a
+//!   constant sky over a diffuse surface;
+//! - the other emitters are chosen in proportion to their power (area × brightest emission
+//!   channel): a triangle by a uniform point on it (Shirley's square-root warp), a sphere by a
+//!   uniform direction in the cone it subtends (pbrt's method, exact for any distance).
+//!
+//! Spheres in moved parts are placed by their instance; the radius follows the transform's
+//! scale (exact for rotations, translations and uniform scales, which is what rigid motion
+//! gives).
 
 use crate::geometry::Geometry;
 use crate::material::Material;
 use crate::sampler::Pcg32;
+use crate::scene::Background;
 use glam::Vec3;
+use phr_bvh::sphere::Sphere;
 use phr_bvh::triangle::triangle_normal;
+use std::f32::consts::{FRAC_1_PI, TAU};
 
-/// The emissive triangles of a scene and a power-proportional distribution over them.
+/// The sky's share of the light samples when the scene has other emitters as well.
+pub const SKY_SHARE: f32 = 0.5;
+
+/// Every emitter of a scene and how to pick one.
 #[derive(Clone, Debug, Default)]
 pub struct LightSet {
-    /// Primitive indices of the emissive triangles.
-    triangles: Vec<u32>,
-    /// Cumulative selection weights (the last is the total).
+    /// Primitive indices of the emissive triangles and spheres, ascending (triangles first,
+    /// as in [`Geometry`]'s primitive numbering).
+    prims: Vec<u32>,
+    /// Each emitter's area and emission, refreshed with the selection weights.
+    emitters: Vec<Emitter>,
+    /// Cumulative selection weights over `prims` (the last is the total); empty when none
+    /// of them can be picked.
     cdf: Vec<f32>,
-    /// Whether primitive `p` is one of them (for the no-double-counting rule).
-    is_light: Vec<bool>,
+    /// The background, when it emits anything.
+    sky: Option<Background>,
+    /// Probability of sampling the sky rather than one of `prims`.
+    sky_probability: f32,
 }
 
-/// A point sampled on a light.
+#[derive(Clone, Copy, Debug)]
+struct Emitter {
+    area: f32,
+    emit: Vec3,
+    two_sided: bool,
+}
+
+impl Emitter {
+    /// Radiance towards a ray that arrives on the `front` side.
+    fn radiance(&self, front: bool) -> Vec3 {
+        if front || self.two_sided {
+            self.emit
+        } else {
+            Vec3::ZERO
+        }
+    }
+}
+
+/// A direction towards a light, chosen from a shading point.
 #[derive(Clone, Copy, Debug)]
 pub struct LightSample {
-    pub point: Vec3,
-    /// Unit normal (the emitting side for one-sided lights is the one it points to).
-    pub normal: Vec3,
-    pub material: u32,
-    /// Probability density of the sample with respect to area.
-    pub pdf_area: f32,
+    /// Unit direction from the shading point.
+    pub dir: Vec3,
+    /// The point on the light (`None` for the sky, which lies at infinity).
+    pub point: Option<Vec3>,
+    /// Radiance the light sends back along `-dir` (zero from the back of a one-sided light).
+    pub radiance: Vec3,
+    /// Density of `dir` with respect to solid angle, the light's selection included.
+    pub pdf: f32,
+    /// The sampled primitive ([`SKY`] for the sky).
+    pub prim: u32,
+}
+
+/// [`LightSample::prim`] of a sky sample.
+pub const SKY: u32 = u32::MAX;
+
+/// Emission and sidedness of a material (zero if it does not emit).
+fn emission(material: &Material) -> (Vec3, bool) {
+    match material {
+        Material::Emissive { emit, two_sided } => (*emit, *two_sided),
+        _ => (Vec3::ZERO, false),
+    }
+}
+
+/// The cone a sphere subtends from `from`: `1 − cos θmax`, computed without cancellation
+/// for far spheres; `None` from inside the sphere or on it.
+fn cone(sphere: &Sphere, from: Vec3) -> Option<f32> {
+    let r = sphere.radius.abs();
+    let dist2 = (sphere.center - from).length_squared();
+    let sin2 = r * r / dist2;
+    if sin2.is_nan() || sin2 >= 1.0 {
+        return None;
+    }
+    let one_minus_cos = sin2 / (1.0 + (1.0 - sin2).sqrt());
+    (one_minus_cos > 0.0).then_some(one_minus_cos)
+}
+
+/// An orthonormal basis around the unit `n` (Duff et al. 2017, "Building an Orthonormal
+/// Basis, Revisited").
+fn basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
 }
 
 impl LightSet {
-    pub fn new(geometry: &Geometry, materials: &[Material]) -> Self {
-        let mut set = Self { is_light: vec![false; geometry.triangles.len()], ..Self::default() };
-        for (i, &m) in geometry.triangle_material.iter().enumerate() {
-            if matches!(materials[m as usize], Material::Emissive { emit, .. } if emit.max_element() > 0.0) {
-                set.triangles.push(i as u32);
-                set.is_light[i] = true;
-            }
-        }
+    /// The emitters of `geometry` with `materials`, and `background` if it is not black.
+    pub fn new(geometry: &Geometry, materials: &[Material], background: &Background) -> Self {
+        let n_tris = geometry.triangles.len();
+        let emits = |m: u32| emission(&materials[m as usize]).0.max_element() > 0.0;
+        let triangles = (0..n_tris).filter(|&i| emits(geometry.triangle_material[i]));
+        let spheres = (0..geometry.spheres.len()).filter(|&i| emits(geometry.spheres[i].material));
+        let prims = triangles.chain(spheres.map(|i| n_tris + i)).map(|p| p as u32).collect();
+        let sky = (background.max_radiance() > 0.0).then(|| background.clone());
+        let mut set = Self { prims, sky, ..Self::default() };
         set.refresh(geometry, materials);
         set
     }
 
-    /// Recomputes the selection weights after the triangles moved (animated lights change
-    /// area when they deform or scale).
+    /// Recomputes the emitters' areas and selection weights after they moved (animated lights
+    /// change area when they deform or scale).
     pub fn refresh(&mut self, geometry: &Geometry, materials: &[Material]) {
         self.cdf.clear();
+        self.emitters.clear();
+        let n_tris = geometry.triangles.len();
         let mut total = 0.0f32;
-        for &i in &self.triangles {
-            let [a, b, c] = geometry.world_triangle(i as usize);
-            let emit = match materials[geometry.triangle_material[i as usize] as usize] {
-                Material::Emissive { emit, .. } => emit.max_element(),
-                _ => 0.0,
+        for &p in &self.prims {
+            let p = p as usize;
+            let (area, material) = if p < n_tris {
+                let [a, b, c] = geometry.world_triangle(p);
+                (0.5 * triangle_normal(a, b, c).length(), geometry.triangle_material[p])
+            } else {
+                let r = geometry.world_sphere(p - n_tris).radius;
+                (2.0 * TAU * r * r, geometry.spheres[p - n_tris].material)
             };
-            let power = 0.5 * triangle_normal(a, b, c).length() * emit;
+            let (emit, two_sided) = emission(&materials[material as usize]);
+            let power = area * emit.max_element();
             // Degenerate lights get no weight (and so are never picked).
-            total += if power.is_finite() { power.max(0.0) } else { 0.0 };
+            total += if power.is_finite() && area > 0.0 { power.max(0.0) } else { 0.0 };
+            self.emitters.push(Emitter { area, emit, two_sided });
             self.cdf.push(total);
         }
-        if total <= 0.0 {
+        if !(total > 0.0 && total.is_finite()) {
             self.cdf.clear();
         }
+        self.sky_probability = match (&self.sky, self.cdf.is_empty()) {
+            (None, _) => 0.0,
+            (Some(_), true) => 1.0,
+            (Some(_), false) => SKY_SHARE,
+        };
     }
 
     /// No light can be sampled.
     pub fn is_empty(&self) -> bool {
-        self.cdf.is_empty()
+        self.cdf.is_empty() && self.sky.is_none()
     }
 
+    /// Number of emitting primitives (the sky not counted).
     pub fn len(&self) -> usize {
-        self.triangles.len()
+        self.prims.len()
     }
 
-    /// Whether primitive `prim` is a sampled light.
-    #[inline]
+    /// The sky is one of the lights.
+    pub fn has_sky(&self) -> bool {
+        self.sky.is_some()
+    }
+
+    /// Whether primitive `prim` is a light that can be picked.
     pub fn contains(&self, prim: u32) -> bool {
-        self.is_light.get(prim as usize).copied().unwrap_or(false)
+        self.emitter(prim).is_some_and(|k| self.selection(k) > 0.0)
     }
 
-    /// Picks a light by power and a uniform point on it.
-    pub fn sample(&self, geometry: &Geometry, rng: &mut Pcg32) -> Option<LightSample> {
+    /// The index of primitive `prim` among the emitters.
+    fn emitter(&self, prim: u32) -> Option<usize> {
+        self.prims.binary_search(&prim).ok()
+    }
+
+    /// Probability of picking emitter `k`.
+    fn selection(&self, k: usize) -> f32 {
+        let Some(&total) = self.cdf.last() else { return 0.0 };
+        let weight = self.cdf[k] - if k > 0 { self.cdf[k - 1] } else { 0.0 };
+        (1.0 - self.sky_probability) * weight / total
+    }
+
+    /// Picks a light and a direction towards it from `position`, whose unit normal on the
+    /// side the path is on is `facing`.
+    pub fn sample(&self, geometry: &Geometry, position: Vec3, facing: Vec3, rng: &mut Pcg32) -> Option<LightSample> {
+        let pick = rng.next_f32();
+        if pick < self.sky_probability {
+            return self.sample_sky(facing, rng);
+        }
         let total = *self.cdf.last()?;
-        let x = rng.next_f32() * total;
+        // Reuse the pick's remainder for the emitter: one uniform number chooses both.
+        let x = (pick - self.sky_probability) / (1.0 - self.sky_probability) * total;
         let k = self.cdf.partition_point(|&c| c <= x).min(self.cdf.len() - 1);
-        if self.cdf[k] <= if k > 0 { self.cdf[k - 1] } else { 0.0 } {
+        let selection = self.selection(k);
+        if selection.is_nan() || selection <= 0.0 {
             return None;
         }
-        let weight = self.cdf[k] - if k > 0 { self.cdf[k - 1] } else { 0.0 };
-        let prim = self.triangles[k] as usize;
-        let [a, b, c] = geometry.world_triangle(prim);
-        let cross = triangle_normal(a, b, c);
-        let area = 0.5 * cross.length();
-        // Uniform on the triangle: the square-root warp of two uniforms.
+        let prim = self.prims[k];
+        let emitter = &self.emitters[k];
+        let n_tris = geometry.triangles.len();
         let (u1, u2) = (rng.next_f32(), rng.next_f32());
-        let s = u1.sqrt();
-        let point = a * (1.0 - s) + b * (s * (1.0 - u2)) + c * (s * u2);
-        Some(LightSample {
-            point,
-            normal: cross / (2.0 * area),
-            material: geometry.triangle_material[prim],
-            pdf_area: weight / total / area,
-        })
+        let sample = if (prim as usize) < n_tris {
+            let [a, b, c] = geometry.world_triangle(prim as usize);
+            let s = u1.sqrt();
+            let point = a * (1.0 - s) + b * (s * (1.0 - u2)) + c * (s * u2);
+            let to_light = point - position;
+            let dist2 = to_light.length_squared();
+            let dir = to_light / dist2.sqrt();
+            let cos_light = -triangle_normal(a, b, c).normalize().dot(dir);
+            let pdf = selection / emitter.area * dist2 / cos_light.abs();
+            LightSample { dir, point: Some(point), radiance: emitter.radiance(cos_light > 0.0), pdf, prim }
+        } else {
+            let sphere = geometry.world_sphere(prim as usize - n_tris);
+            let one_minus_cos_max = cone(&sphere, position)?;
+            // A uniform direction in the cone: 1 − cos θ uniform in [0, 1 − cos θmax].
+            let one_minus_cos = u1 * one_minus_cos_max;
+            let cos = 1.0 - one_minus_cos;
+            let sin = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
+            let axis = sphere.center - position;
+            let dist = axis.length();
+            let axis = axis / dist;
+            let (x, y) = basis(axis);
+            let (sp, cp) = (TAU * u2).sin_cos();
+            let dir = (x * (sin * cp) + y * (sin * sp) + axis * cos).normalize();
+            // The nearest point of the sphere along `dir` (clamped at the silhouette).
+            let r = sphere.radius.abs();
+            let t = dist * cos - (r * r - dist * dist * sin * sin).max(0.0).sqrt();
+            let point = position + dir * t;
+            let front = dir.dot(sphere.normal(point)) < 0.0;
+            let pdf = selection / (TAU * one_minus_cos_max);
+            LightSample { dir, point: Some(point), radiance: emitter.radiance(front), pdf, prim }
+        };
+        (sample.pdf > 0.0 && sample.pdf.is_finite() && sample.dir.is_finite()).then_some(sample)
+    }
+
+    /// A cosine-weighted direction around `facing` towards the sky.
+    fn sample_sky(&self, facing: Vec3, rng: &mut Pcg32) -> Option<LightSample> {
+        let sky = self.sky.as_ref()?;
+        // RTIOW's construction: the normal plus a uniform unit vector is cosine-distributed.
+        let d = facing + rng.unit_vector();
+        let length = d.length();
+        if length.is_nan() || length <= 1e-6 {
+            return None;
+        }
+        let dir = d / length;
+        let pdf = self.pdf_sky(facing, dir);
+        (pdf > 0.0).then(|| LightSample { dir, point: None, radiance: sky.radiance(dir), pdf, prim: SKY })
+    }
+
+    /// Density with which [`LightSet::sample`] from `from` (normal `facing`) picks the
+    /// unit direction `dir` that escapes to the sky.
+    #[inline]
+    pub fn pdf_sky(&self, facing: Vec3, dir: Vec3) -> f32 {
+        self.sky_probability * facing.dot(dir).max(0.0) * FRAC_1_PI
+    }
+
+    /// Density with which [`LightSet::sample`] from `from` picks the direction towards
+    /// `point` on primitive `prim`, whose unit geometric normal there is `normal` (0 if
+    /// `prim` is not a light).
+    pub fn pdf_hit(&self, geometry: &Geometry, prim: u32, from: Vec3, point: Vec3, normal: Vec3) -> f32 {
+        let Some(k) = self.emitter(prim) else { return 0.0 };
+        let selection = self.selection(k);
+        let n_tris = geometry.triangles.len();
+        if (prim as usize) < n_tris {
+            let to_light = point - from;
+            let dist2 = to_light.length_squared();
+            let cos_light = normal.dot(to_light).abs() / dist2.sqrt();
+            let pdf = selection / self.emitters[k].area * dist2 / cos_light;
+            if pdf.is_finite() {
+                pdf
+            } else {
+                0.0
+            }
+        } else {
+            let sphere = geometry.world_sphere(prim as usize - n_tris);
+            cone(&sphere, from).map_or(0.0, |one_minus_cos_max| selection / (TAU * one_minus_cos_max))
+        }
+    }
+}
+
+/// The power heuristic (β = 2) weight of a strategy with density `pdf` against one with
+/// density `other` (Veach 1997).
+#[inline]
+pub fn power_heuristic(pdf: f32, other: f32) -> f32 {
+    let (a, b) = (pdf * pdf, other * other);
+    if a + b > 0.0 && (a + b).is_finite() {
+        a / (a + b)
+    } else if pdf.is_infinite() {
+        1.0
+    } else {
+        0.0
     }
 }

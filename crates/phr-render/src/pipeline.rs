@@ -109,8 +109,8 @@ pub struct PipelineSettings {
     /// Maximum ray segments per path (camera ray included).
     pub max_depth: u32,
     pub mode: ViewMode,
-    /// Sample the emissive triangles at diffuse hits (next-event estimation, see
-    /// [`crate::lights`]) instead of relying on paths hitting them.
+    /// Sample the lights at diffuse hits with MIS (see [`crate::lights`]) instead of relying
+    /// on paths hitting them.
     pub explicit_lights: bool,
 }
 
@@ -206,7 +206,7 @@ pub struct FramePipeline {
     tree_age: u64,
     /// The SAH cost of the last tree the worker delivered, when it landed.
     landed_sah: f64,
-    /// The emissive triangles, when explicit light sampling is on.
+    /// The scene's emitters, when explicit light sampling is on.
     lights: Option<LightSet>,
     settings: PipelineSettings,
     camera: CameraDesc,
@@ -359,7 +359,7 @@ impl FramePipeline {
             self.restart();
         }
         if self.settings.explicit_lights && self.lights.is_none() {
-            self.lights = Some(LightSet::new(&self.geometry, &self.scene.materials));
+            self.lights = Some(LightSet::new(&self.geometry, &self.scene.materials, &self.scene.background));
         }
         let render_start = Instant::now();
         let (pixels, rays) = self.render();

@@ -30,7 +30,7 @@ fn render_with(scene: &Scene, threads: usize, seed: u64, builder: Builder, nee: 
     pool.install(|| {
         let mut geometry = Geometry::new(scene);
         geometry.build(&builder);
-        let lights = nee.then(|| LightSet::new(&geometry, &scene.materials));
+        let lights = nee.then(|| LightSet::new(&geometry, &scene.materials, &scene.background));
         assert!(lights.as_ref().is_none_or(|l| !l.is_empty()), "no emissive triangles to sample");
         let view = scene.view(None).expect("default view");
         let settings = RenderSettings { width: WIDTH, height: HEIGHT, spp: FRAMES, max_depth: MAX_DEPTH };

@@ -32,7 +32,7 @@ const SIZE: u32 = 32;
 fn render(scene: &Scene, view: &CameraDesc, max_depth: u32, nee: bool, frames: u32) -> ([f64; 3], [f64; 3]) {
     let mut geometry = Geometry::new(scene);
     geometry.build(&Builder::default());
-    let lights = nee.then(|| LightSet::new(&geometry, &scene.materials));
+    let lights = nee.then(|| LightSet::new(&geometry, &scene.materials, &scene.background));
     let settings = RenderSettings { width: SIZE, height: SIZE, spp: frames, max_depth };
     let renderer = Renderer::new(scene, &geometry, view, &settings, lights.as_ref())
         .with_seed(u64::from(max_depth) + 100 * u64::from(nee));

@@ -110,7 +110,7 @@ fn check_geometry(p: &FramePipeline, builder: Builder, frame: usize) {
 /// What a renderer made from scratch over the pipeline's current geometry renders for `frame`.
 fn fresh_render(p: &FramePipeline, frame: u32, lights: bool) -> Vec<Vec3> {
     let (scene, g) = (p.scene(), p.geometry());
-    let light_set = lights.then(|| LightSet::new(g, &scene.materials));
+    let light_set = lights.then(|| LightSet::new(g, &scene.materials, &scene.background));
     let size = RenderSettings { width: SIZE, height: SIZE, spp: 1, max_depth: p.settings().max_depth };
     Renderer::new(scene, g, p.camera(), &size, light_set.as_ref()).render_frame(frame).0
 }

@@ -2,11 +2,11 @@
 //! comparison tool (`compare_images.py --check`), which we did not write: the four of
 //! `shared/reference`, and `tests/references/lights_mixed` (rendered with the same tool,
 //! `render_reference.py --variant llvm_ad_rgb --integrator rtiow --passes 64`), where a
-//! triangle light that light sampling samples meets an emissive sphere and the sky that it
-//! does not, and a glass sphere.
+//! triangle light meets an emissive sphere, the sky and a glass sphere.
 //!
+//! Every reference is checked with both estimators, which must converge to the same image.
 //! Renders with the thesis's estimator are judged with `--test-spp` (the reference's own noise
-//! per sample); renders with explicit light sampling, whose noise is lower, with `--test-var`,
+//! per sample); renders with light sampling (MIS), whose noise is lower, with `--test-var`,
 //! the variance of their own mean, as the tool's README asks. The CI variant renders each
 //! scene with 256 samples per pixel; `--ignored` runs the README's recommended 1024. The tool
 //! needs Python 3 with numpy and OpenEXR: where `python3` lacks them, the tests make a virtual
@@ -78,23 +78,28 @@ fn own_reference(name: &'static str) -> Reference {
     Reference { name, scene: dir.join(format!("{name}.json")), image: dir.join(format!("{name}_ref.exr")) }
 }
 
-/// Renders `name` at its own size and depth with `spp` samples, writes the linear mean as PFM
-/// and runs the comparison; panics with the tool's output on failure.
-fn check_against_reference(name: &'static str, spp: u32) {
-    check_with(&shared_reference(name), spp, false);
+/// Which estimator renders the image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Estimator {
+    /// The thesis's: implicit lights only.
+    Implicit,
+    /// Light sampling with MIS and Russian roulette.
+    Lights,
 }
 
-/// Renders the reference's scene, optionally with explicit light sampling (which must converge
-/// to the same image), and compares.
-fn check_with(reference: &Reference, spp: u32, nee: bool) {
+/// Renders the reference's scene with `estimator` (both must converge to the same image) and
+/// `spp` samples per pixel at its own size and depth, writes the linear mean as PFM and runs
+/// the comparison; panics with the tool's output on failure.
+fn check_with(reference: &Reference, spp: u32, estimator: Estimator) {
     let (name, scene_file) = (reference.name, &reference.scene);
     assert!(scene_file.is_file(), "missing {} (shared/ must sit next to the repository)", scene_file.display());
     let scene = load_scene(scene_file).unwrap();
     let mut geometry = Geometry::new(&scene);
     geometry.build(&Builder::default());
-    let lights = nee.then(|| LightSet::new(&geometry, &scene.materials));
-    if nee {
-        assert!(!lights.as_ref().unwrap().is_empty(), "{name} has no emissive triangles to sample");
+    let lights =
+        (estimator == Estimator::Lights).then(|| LightSet::new(&geometry, &scene.materials, &scene.background));
+    if let Some(lights) = &lights {
+        assert!(!lights.is_empty(), "{name} has no light to sample");
     }
     let (w, h) = (scene.settings.width, scene.settings.height);
     let renderer =
@@ -103,12 +108,12 @@ fn check_with(reference: &Reference, spp: u32, nee: bool) {
     for frame in 0..spp {
         film.add_frame(&renderer.render_frame(frame).0);
     }
-    let out = std::env::temp_dir().join(format!("phr-ref-{name}-{nee}-{}.pfm", std::process::id()));
+    let out = std::env::temp_dir().join(format!("phr-ref-{name}-{estimator:?}-{}.pfm", std::process::id()));
     let variance = out.with_extension("var.pfm");
     write_image(&out, w, h, &film.mean()).unwrap();
     let mut compare = Command::new(python());
     compare.arg(shared().join("reference/tools/compare_images.py")).arg(&out).arg(&reference.image).arg("--check");
-    if nee {
+    if estimator == Estimator::Lights {
         write_image(&variance, w, h, &film.variance_of_mean()).unwrap();
         compare.arg("--test-var").arg(&variance);
     } else {
@@ -118,58 +123,50 @@ fn check_with(reference: &Reference, spp: u32, nee: bool) {
     let _ = std::fs::remove_file(&out);
     let _ = std::fs::remove_file(&variance);
     let text = format!("{}{}", String::from_utf8_lossy(&result.stdout), String::from_utf8_lossy(&result.stderr));
-    println!("{name}, {spp} spp, nee {nee}:\n{text}");
+    println!("{name}, {spp} spp, {estimator:?}:\n{text}");
     assert!(result.status.success() && text.contains("PASS"), "{name} does not match the reference:\n{text}");
+}
+
+/// Both estimators against one reference at 256 spp.
+fn check_both(reference: Reference) {
+    check_with(&reference, 256, Estimator::Implicit);
+    check_with(&reference, 256, Estimator::Lights);
 }
 
 #[test]
 fn cornell_obj_matches_reference() {
-    check_against_reference("cornell_obj", 256);
-}
-
-#[test]
-fn cornell_obj_with_explicit_light_sampling_matches_reference() {
-    check_with(&shared_reference("cornell_obj"), 256, true);
-}
-
-#[test]
-fn cornell_glass_mirror_with_explicit_light_sampling_matches_reference() {
-    check_with(&shared_reference("cornell_glass_mirror"), 256, true);
-}
-
-/// Light sampling must leave the emissive sphere and the sky to the paths that hit them.
-#[test]
-fn lights_mixed_with_explicit_light_sampling_matches_reference() {
-    check_with(&own_reference("lights_mixed"), 256, true);
-}
-
-#[test]
-fn lights_mixed_matches_reference() {
-    check_with(&own_reference("lights_mixed"), 256, false);
+    check_both(shared_reference("cornell_obj"));
 }
 
 #[test]
 fn cornell_glass_mirror_matches_reference() {
-    check_against_reference("cornell_glass_mirror", 256);
+    check_both(shared_reference("cornell_glass_mirror"));
 }
 
+/// The sky is sampled as a light.
 #[test]
 fn spheres_sky_matches_reference() {
-    check_against_reference("spheres_sky", 256);
+    check_both(shared_reference("spheres_sky"));
 }
 
 #[test]
 fn bunny_sky_matches_reference() {
-    check_against_reference("bunny_sky", 256);
+    check_both(shared_reference("bunny_sky"));
+}
+
+/// A triangle light, an emissive sphere (cone sampling) and the sky, all sampled.
+#[test]
+fn lights_mixed_matches_reference() {
+    check_both(own_reference("lights_mixed"));
 }
 
 #[test]
 #[ignore = "slow: 1024 spp per scene (run with --ignored)"]
 fn all_references_at_1024_spp() {
-    for name in ["cornell_obj", "cornell_glass_mirror", "spheres_sky", "bunny_sky"] {
-        check_against_reference(name, 1024);
-    }
-    for nee in [false, true] {
-        check_with(&own_reference("lights_mixed"), 1024, nee);
+    let all = ["cornell_obj", "cornell_glass_mirror", "spheres_sky", "bunny_sky"].map(shared_reference);
+    for reference in all.into_iter().chain([own_reference("lights_mixed")]) {
+        for estimator in [Estimator::Implicit, Estimator::Lights] {
+            check_with(&reference, 1024, estimator);
+        }
     }
 }

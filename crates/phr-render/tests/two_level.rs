@@ -178,16 +178,24 @@ fn light_samples_lie_on_the_moved_lamp() {
     for _ in 0..3 {
         thesis.step(0.61);
         two.step(0.61);
-        let materials = &thesis.scene().materials;
-        let (lt, l2) = (LightSet::new(thesis.geometry(), materials), LightSet::new(two.geometry(), materials));
+        let (materials, background) = (&thesis.scene().materials, &thesis.scene().background);
+        let lt = LightSet::new(thesis.geometry(), materials, background);
+        let l2 = LightSet::new(two.geometry(), materials, background);
         assert_eq!(lt.len(), 2);
+        // From below the lamp, looking up.
+        let (from, facing) = (Vec3::new(0.1, -0.9, 0.2), Vec3::Y);
         for seed in 0..50 {
             let mut r1 = Pcg32::for_pixel(seed, 1, 2);
             let mut r2 = r1.clone();
-            let (a, b) = (lt.sample(thesis.geometry(), &mut r1).unwrap(), l2.sample(two.geometry(), &mut r2).unwrap());
-            assert!((a.point - b.point).length() < 1e-4, "{} vs {}", a.point, b.point);
-            assert!(a.normal.dot(b.normal) > 0.9999);
-            assert!(close(a.pdf_area, b.pdf_area));
+            let a = lt.sample(thesis.geometry(), from, facing, &mut r1).unwrap();
+            let b = l2.sample(two.geometry(), from, facing, &mut r2).unwrap();
+            match (a.point, b.point) {
+                (Some(pa), Some(pb)) => assert!((pa - pb).length() < 1e-4, "{pa} vs {pb}"),
+                (None, None) => {} // both chose the sky
+                (pa, pb) => panic!("one chose the sky, the other not: {pa:?} vs {pb:?}"),
+            }
+            assert!(a.dir.dot(b.dir) > 0.9999);
+            assert!(close(a.pdf, b.pdf), "{} vs {}", a.pdf, b.pdf);
         }
     }
 }

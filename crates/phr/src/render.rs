@@ -58,11 +58,19 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
-    /// Explicit light sampling: diffuse hits also sample the emissive triangles (next-event
-    /// estimation; the same expected image with less noise). Default: implicit lights only,
-    /// the thesis's and the references' estimator.
-    #[arg(long)]
-    pub nee: bool,
+    /// The estimator. `path`: at diffuse hits one light (emissive triangle or sphere, the
+    /// sky) is sampled through a shadow ray, weighed against the path's own bounce by multiple
+    /// importance sampling, with Russian roulette. `implicit`: lights only count where paths
+    /// hit them, the thesis's estimator (and `phr bench`'s). Both converge to the same image.
+    #[arg(long, value_enum, default_value = "path")]
+    pub integrator: Integrator,
+}
+
+/// The estimators of `phr render --integrator`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Integrator {
+    Path,
+    Implicit,
 }
 
 impl Default for RenderArgs {
@@ -82,7 +90,7 @@ impl Default for RenderArgs {
             variance: None,
             heatmap: None,
             quiet: false,
-            nee: false,
+            integrator: Integrator::Path,
         }
     }
 }
@@ -131,7 +139,8 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let report = geometry.build_report(&builder);
     let build = describe_build(&builder, &report);
     geometry.set_bvh(report.bvh);
-    let lights = args.nee.then(|| LightSet::new(&geometry, &scene.materials));
+    let lights =
+        (args.integrator == Integrator::Path).then(|| LightSet::new(&geometry, &scene.materials, &scene.background));
 
     let renderer = Renderer::new(&scene, &geometry, &view, &settings, lights.as_ref()).with_seed(args.seed);
     let progress = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(spp as u64) };

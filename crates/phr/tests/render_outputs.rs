@@ -1,9 +1,9 @@
 //! `phr render`'s extra outputs and estimators on the built-in Cornell-box scene, at tiny
 //! sizes: the `--heatmap` PNG has the image's size, spans its colour scale and is not
 //! constant; the `--variance` PFM has the image's size, is finite and ≥ 0 everywhere and
-//! shrinks as 1/spp (it is the variance of the mean); `--nee` (next-event estimation) gives
-//! the same expected image as the implicit estimator, within the noise its variance files
-//! predict, with less variance.
+//! shrinks as 1/spp (it is the variance of the mean); the default estimator (light sampling
+//! with MIS) gives the same expected image as `--integrator implicit`, within the noise its
+//! variance files predict, with less variance.
 
 mod common;
 
@@ -74,11 +74,12 @@ fn heatmap_has_the_image_size_and_spans_its_scale() {
 }
 
 #[test]
-fn variance_is_of_the_mean_and_nee_agrees_with_less_of_it() {
+fn variance_is_of_the_mean_and_light_sampling_agrees_with_less_of_it() {
     let dir = TempDir::new("render-variance");
-    let (_, var16) = render(&dir, "implicit16", 16, &[]);
-    let (implicit, var64) = render(&dir, "implicit64", 64, &[]);
-    let (nee, nee_var) = render(&dir, "nee64", 64, &["--nee"]);
+    let implicit_args = ["--integrator", "implicit"];
+    let (_, var16) = render(&dir, "implicit16", 16, &implicit_args);
+    let (implicit, var64) = render(&dir, "implicit64", 64, &implicit_args);
+    let (nee, nee_var) = render(&dir, "path64", 64, &[]);
 
     // The variance of the mean: 4 times the samples, a quarter of the variance (summed over
     // the image: each pixel's estimate is unbiased, if skewed).
@@ -92,7 +93,10 @@ fn variance_is_of_the_mean_and_nee_agrees_with_less_of_it() {
         ((ma - mb) / (va + vb).sqrt(), ma, mb)
     };
     let (z_all, m_implicit, m_nee) = z(&a, &b);
-    assert!(z_all.abs() < 4.0, "image means: implicit {m_implicit}, NEE {m_nee}: {z_all} standard deviations apart");
+    assert!(
+        z_all.abs() < 4.0,
+        "image means: implicit {m_implicit}, light sampling {m_nee}: {z_all} standard deviations apart"
+    );
     // 4×4 blocks of pixels, row by row.
     let (w, h) = (SIZE.0 as usize, SIZE.1 as usize);
     let blocks = |p: &[(f64, f64)]| {
@@ -104,12 +108,15 @@ fn variance_is_of_the_mean_and_nee_agrees_with_less_of_it() {
     };
     for (k, (ba, bb)) in blocks(&a).iter().zip(&blocks(&b)).enumerate() {
         let (zb, ma, mb) = z(ba, bb);
-        assert!(zb.abs() < 5.0, "block {k}: implicit {ma}, NEE {mb}: {zb} standard deviations apart");
+        assert!(zb.abs() < 5.0, "block {k}: implicit {ma}, light sampling {mb}: {zb} standard deviations apart");
     }
 
     // Less noise: on average and in the typical pixel.
     let (nee_mean, implicit_mean) = (nee_var.mean(), var64.mean());
-    assert!(nee_mean < 0.8 * implicit_mean, "mean pixel variance: NEE {nee_mean} vs implicit {implicit_mean}");
+    assert!(
+        nee_mean < 0.8 * implicit_mean,
+        "mean pixel variance: light sampling {nee_mean} vs implicit {implicit_mean}"
+    );
     let (mn, mi) = (median(nee_var.rgb.clone()), median(var64.rgb.clone()));
-    assert!(mn < 0.8 * mi, "median pixel variance: NEE {mn} vs implicit {mi}");
+    assert!(mn < 0.8 * mi, "median pixel variance: light sampling {mn} vs implicit {mi}");
 }

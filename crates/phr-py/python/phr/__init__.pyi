@@ -83,10 +83,13 @@ class Scene:
         seed: int = 0,
         max_depth: Optional[int] = None,
         builder: str = "sbvh",
-        nee: bool = False,
+        integrator: str = "path",
         threads: Optional[int] = None,
     ) -> npt.NDArray[np.float32]:
-        """Path traces as ``phr render`` does; the linear mean, shape (height, width, 3)."""
+        """Path traces as ``phr render`` does; the linear mean, shape (height, width, 3).
+
+        ``integrator``: ``"path"`` samples the lights with MIS (the default),
+        ``"implicit"`` is the thesis's estimator."""
 
 def render(scene: str, **options: Any) -> npt.NDArray[np.float32]:
     """``Scene(scene).render(**options)``."""

@@ -23,7 +23,8 @@ def read_pfm(path):
     [
         ("builtin", dict(width=48, height=32, spp=3, seed=7)),
         ("builtin", dict(width=40, height=40, spp=2, view="close", builder="phr-fast", max_depth=3)),
-        ("SHARED/reference/scenes/cornell_obj.json", dict(width=32, height=32, spp=2, nee=True)),
+        ("builtin", dict(width=24, height=24, spp=2, integrator="implicit")),
+        ("SHARED/reference/scenes/cornell_obj.json", dict(width=32, height=32, spp=2)),
     ],
 )
 def test_render_equals_the_command_line(tmp_path, phr_bin, shared, scene, options):
@@ -69,5 +70,7 @@ def test_bad_scenes_and_settings_raise_with_the_message(tmp_path):
         scene.render(width=0, height=8, spp=1)
     with pytest.raises(ValueError, match="spp"):
         scene.render(width=8, height=8, spp=0)
+    with pytest.raises(ValueError, match="integrator"):
+        scene.render(width=8, height=8, spp=1, integrator="bdpt")
     with pytest.raises(ValueError, match="unknown builder"):
         phr.render("builtin", width=8, height=8, spp=1, builder="kd-tree")

@@ -37,6 +37,14 @@ impl Background {
             }
         }
     }
+
+    /// The brightest channel anywhere in the sky (0: black, it lights nothing).
+    pub fn max_radiance(&self) -> f32 {
+        match self {
+            Background::Constant(c) => c.max_element(),
+            Background::Gradient { bottom, top } => bottom.max_element().max(top.max_element()),
+        }
+    }
 }
 
 /// A triangle mesh with one material index per triangle.

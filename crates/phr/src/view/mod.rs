@@ -63,10 +63,10 @@ pub struct ViewArgs {
     /// Start with the animation paused.
     #[arg(long)]
     paused: bool,
-    /// How lights are found: `explicit` samples the emissive triangles at diffuse hits
-    /// (next-event estimation: the same expected image, far less noise from small lights, the
-    /// viewer's default); `implicit` only counts lights that paths happen to hit, the thesis's
-    /// estimator.
+    /// How lights are found: `explicit` samples one light (emissive triangle or sphere, the
+    /// sky) at every diffuse hit, weighed against the path's own bounce by multiple importance
+    /// sampling, with Russian roulette (the same expected image, far less noise; the viewer's
+    /// default); `implicit` only counts lights that paths happen to hit, the thesis's estimator.
     #[arg(long, value_enum, default_value = "explicit")]
     light_sampling: LightSampling,
 }
