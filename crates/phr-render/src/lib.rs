@@ -2,13 +2,14 @@
 //!
 //! The data path, one module per step: scene file ([`scene::json`]) or mesh file ([`load`])
 //! → [`scene::Scene`] → triangles and spheres with a BVH ([`geometry`]) → camera rays
-//! ([`camera`]) → hits → shading ([`material`], [`integrator`]) → [`film`] → image files
-//! ([`output`]). [`render`] runs the progressive, multi-threaded loop; [`motion`] describes
+//! ([`camera`]) → hits → shading ([`material`], [`integrator`]) → [`film`] → [`denoise`] →
+//! image files ([`output`]). [`render`] runs the progressive, multi-threaded loop; [`motion`] describes
 //! what moves (plain data the loaders fill in), [`animation`] poses
 //! dynamic scenes and [`pipeline`] runs the per-frame loop of the interactive viewer.
 
 pub mod animation;
 pub mod camera;
+pub mod denoise;
 pub mod error;
 pub mod film;
 pub mod geometry;

@@ -6,6 +6,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::builder::BuildReport;
 use phr_bvh::{sah_cost, Builder, SahConstants};
+use phr_render::denoise::{Atrous, Guide};
 use phr_render::film::Film;
 use phr_render::geometry::Geometry;
 use phr_render::lights::LightSet;
@@ -43,12 +44,17 @@ pub struct RenderArgs {
     /// Children per node (PHR builders: 2, 4, 8 or 16).
     #[arg(long, default_value_t = 2)]
     pub branching: u32,
-    /// Output image: .png (sRGB), .exr or .pfm (linear).
+    /// Output image: .png (sRGB), .exr or .pfm (linear); denoised unless `--denoiser none`.
     #[arg(long, short, default_value = "render.png")]
     pub out: PathBuf,
-    /// Also write the linear mean to this .exr or .pfm.
+    /// Also write the film's linear mean to this .exr or .pfm, never denoised: the unbiased
+    /// estimate that image comparisons want.
     #[arg(long)]
     pub linear: Option<PathBuf>,
+    /// Also write the denoiser's guides: the first hits' albedo (PATH) and normals (PATH with
+    /// `_normal` before its extension), .exr or .pfm.
+    #[arg(long)]
+    pub albedo: Option<PathBuf>,
     /// Also write the per-pixel variance of the mean (.exr or .pfm), for compare_images.py --test-var.
     #[arg(long)]
     pub variance: Option<PathBuf>,
@@ -64,6 +70,17 @@ pub struct RenderArgs {
     /// hit them, the thesis's estimator (and `phr bench`'s). Both converge to the same image.
     #[arg(long, value_enum, default_value = "path")]
     pub integrator: Integrator,
+    /// `atrous`: the edge-avoiding à-trous filter guided by the first hits' albedo, normals
+    /// and positions, and by the film's variance (`crates/phr-render/src/denoise.rs`).
+    #[arg(long, value_enum, default_value = "atrous")]
+    pub denoiser: Denoiser,
+}
+
+/// The denoisers of `phr render --denoiser`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Denoiser {
+    Atrous,
+    None,
 }
 
 /// The estimators of `phr render --integrator`.
@@ -91,6 +108,8 @@ impl Default for RenderArgs {
             heatmap: None,
             quiet: false,
             integrator: Integrator::Path,
+            denoiser: Denoiser::Atrous,
+            albedo: None,
         }
     }
 }
@@ -110,7 +129,7 @@ fn check_output(path: &Path, allowed: &[&str]) -> Result<()> {
 
 pub fn run(args: &RenderArgs) -> Result<()> {
     check_output(&args.out, &["png", "exr", "pfm"])?;
-    for p in [&args.linear, &args.variance].into_iter().flatten() {
+    for p in [&args.linear, &args.variance, &args.albedo].into_iter().flatten() {
         check_output(p, &["exr", "pfm"])?;
     }
     if let Some(p) = &args.heatmap {
@@ -160,10 +179,29 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         progress.set_message(format!("{:.1} Mrays/s", rays as f64 / render_start.elapsed().as_secs_f64() / 1e6));
     }
     let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
+    let mut denoise_ms = None;
     progress.finish_and_clear();
 
     let mean = film.mean();
-    write_image(&args.out, width, height, &mean).with_context(|| format!("writing {}", args.out.display()))?;
+    let guide =
+        (args.denoiser != Denoiser::None || args.albedo.is_some()).then(|| Guide::render(&renderer, spp.min(16)));
+    let image = match (&guide, args.denoiser) {
+        (Some(guide), Denoiser::Atrous) => {
+            let start = Instant::now();
+            let image = Atrous::default().denoise(&mean, &film.variance_of_mean(), guide);
+            denoise_ms = Some(start.elapsed().as_secs_f64() * 1e3);
+            image
+        }
+        _ => mean.clone(),
+    };
+    write_image(&args.out, width, height, &image).with_context(|| format!("writing {}", args.out.display()))?;
+    if let (Some(p), Some(guide)) = (&args.albedo, &guide) {
+        write_image(p, width, height, &guide.albedo).with_context(|| format!("writing {}", p.display()))?;
+        let normal_path = with_suffix(p, "_normal");
+        // Normals in [-1, 1] as they are (linear formats keep the sign).
+        write_image(&normal_path, width, height, &guide.normal)
+            .with_context(|| format!("writing {}", normal_path.display()))?;
+    }
     if let Some(p) = &args.linear {
         write_image(p, width, height, &mean).with_context(|| format!("writing {}", p.display()))?;
     }
@@ -186,8 +224,18 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         rays as f64 / (render_ms / 1e3) / 1e6,
         sah
     );
+    if let Some(ms) = denoise_ms {
+        println!("denoised (à-trous, {} passes) in {ms:.0} ms", Atrous::default().passes);
+    }
     println!("wrote {}", args.out.display());
     Ok(())
+}
+
+/// `dir/name.ext` → `dir/name{suffix}.ext`.
+fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let ext = path.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_default();
+    path.with_file_name(format!("{stem}{suffix}{ext}"))
 }
 
 /// "phr-fast build 12.3 ms (LBVH 4.1 + PHR 8.2, Σ|cut| 185317)" or "lbvh build 4.0 ms".

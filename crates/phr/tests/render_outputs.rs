@@ -120,3 +120,32 @@ fn variance_is_of_the_mean_and_light_sampling_agrees_with_less_of_it() {
     let (mn, mi) = (median(nee_var.rgb.clone()), median(var64.rgb.clone()));
     assert!(mn < 0.8 * mi, "median pixel variance: light sampling {mn} vs implicit {mi}");
 }
+
+/// The denoiser's guides are written on request: the albedo in [0, 1] and unit normals (zero
+/// where a pixel sees no surface to filter); the denoised image is smoother than the raw mean.
+#[test]
+fn albedo_and_normal_guides_are_written_and_the_denoiser_smooths() {
+    let dir = TempDir::new("render-guides");
+    let (w, h) = (SIZE.0.to_string(), SIZE.1.to_string());
+    let args = ["render", "builtin", "--quiet", "--spp", "4", "--width", &w, "--height", &h];
+    let mut with_guides = args.to_vec();
+    with_guides.extend(["--out", "denoised.pfm", "--linear", "raw.pfm", "--albedo", "albedo.pfm"]);
+    phr_ok(&dir.0, &with_guides, Duration::from_secs(120));
+    let (albedo, normal) = (Image::pfm(&dir.join("albedo.pfm")), Image::pfm(&dir.join("albedo_normal.pfm")));
+    for image in [&albedo, &normal] {
+        assert_eq!((image.width, image.height), SIZE);
+    }
+    assert!(albedo.rgb.iter().all(|v| (0.0..=1.0).contains(v)), "albedo outside [0, 1]");
+    let lengths: Vec<f32> =
+        normal.rgb.chunks_exact(3).map(|n| (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()).collect();
+    assert!(lengths.iter().all(|l| *l == 0.0 || (l - 1.0).abs() < 1e-4), "normals neither unit nor zero");
+    assert!(lengths.iter().filter(|l| **l > 0.0).count() > lengths.len() / 2, "most pixels see a surface");
+    // Smoother: the median difference between horizontal neighbours drops (the median: the
+    // lights and their edges, left alone, would dominate a sum).
+    let roughness = |image: &Image| {
+        let pixels: Vec<&[f32]> = image.rgb.chunks_exact(3).collect();
+        median(pixels.windows(2).map(|p| (p[0][1] - p[1][1]).abs()).collect())
+    };
+    let (raw, denoised) = (Image::pfm(&dir.join("raw.pfm")), Image::pfm(&dir.join("denoised.pfm")));
+    assert!(roughness(&denoised) < 0.5 * roughness(&raw), "{} vs raw {}", roughness(&denoised), roughness(&raw));
+}
