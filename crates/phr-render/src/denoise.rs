@@ -104,28 +104,26 @@ impl Guide {
             footprint: pixels.iter().map(|p| p.3).collect(),
         }
     }
-
-    fn is_surface(&self, i: usize) -> bool {
-        self.footprint[i] > 0.0
-    }
 }
 
-/// The filter's settings; the defaults are SVGF's (σl = 4, σn = 128) and one footprint for
+/// The filter's settings; the defaults are SVGF's (σl = 4, and the normal exponent 128) and one footprint for
 /// the plane distance.
 #[derive(Clone, Copy, Debug)]
 pub struct Atrous {
     /// Passes (`2^passes − 1` pixels reach, times 2, on each side).
     pub passes: u32,
     pub sigma_luminance: f32,
-    pub sigma_normal: f32,
     pub sigma_plane: f32,
 }
 
 impl Default for Atrous {
     fn default() -> Self {
-        Self { passes: 5, sigma_luminance: 4.0, sigma_normal: 128.0, sigma_plane: 1.0 }
+        Self { passes: 5, sigma_luminance: 4.0, sigma_plane: 1.0 }
     }
 }
+
+/// The normal weight is `max(0, n_p · n_q)^(2^NORMAL_POWER)`: SVGF's exponent 128, by squaring.
+const NORMAL_POWER: u32 = 7;
 
 /// The B3-spline kernel's weights at offsets −2..=2.
 const KERNEL: [f32; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
@@ -137,18 +135,41 @@ fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
+/// One pixel as the passes read it, in one cache line: its guide and what is filtered (at
+/// the far steps every tap is a different line).
+#[derive(Clone, Copy)]
+struct Texel {
+    normal: Vec3,
+    /// 0: not filtered (see [`Guide::footprint`]).
+    footprint: f32,
+    position: Vec3,
+    /// Luminance of `illumination`.
+    luminance: f32,
+    illumination: Vec3,
+    /// Variance of `luminance`.
+    var: f32,
+}
+
+impl Texel {
+    fn is_surface(&self) -> bool {
+        self.footprint > 0.0
+    }
+}
+
 /// The variance at `(x, y)` smoothed by a 3×3 Gaussian over surface pixels, as SVGF does: one
 /// pixel's variance estimate from few samples is itself noisy.
-fn blurred_variance(var: &[f32], guide: &Guide, x: i32, y: i32) -> f32 {
+fn blurred_variance(texels: &[Texel], w: i32, h: i32, x: i32, y: i32) -> f32 {
     const GAUSS: [f32; 3] = [0.25, 0.5, 0.25];
-    let (w, h) = (guide.width as i32, guide.height as i32);
     let (mut sum, mut total) = (0.0, 0.0);
     for (dy, ky) in (-1..=1).zip(GAUSS) {
         for (dx, kx) in (-1..=1).zip(GAUSS) {
             let (qx, qy) = (x + dx, y + dy);
-            if (0..w).contains(&qx) && (0..h).contains(&qy) && guide.is_surface((qy * w + qx) as usize) {
-                sum += kx * ky * var[(qy * w + qx) as usize].max(0.0);
-                total += kx * ky;
+            if (0..w).contains(&qx) && (0..h).contains(&qy) {
+                let q = &texels[(qy * w + qx) as usize];
+                if q.is_surface() {
+                    sum += kx * ky * q.var.max(0.0);
+                    total += kx * ky;
+                }
             }
         }
     }
@@ -162,39 +183,47 @@ impl Atrous {
         let n = (guide.width * guide.height) as usize;
         assert!(colour.len() == n && variance.len() == n, "image and guide sizes differ");
         let albedo: Vec<Vec3> = guide.albedo.iter().map(|a| a.max(Vec3::splat(MIN_ALBEDO))).collect();
-        let mut illumination: Vec<Vec3> = colour.iter().zip(&albedo).map(|(c, a)| *c / *a).collect();
-        // The luminance's standard deviation, channels taken as fully correlated (one path
-        // makes all three), then squared.
-        let mut var: Vec<f32> = variance
-            .iter()
-            .zip(&albedo)
-            .map(|(v, a)| luminance(Vec3::new(v.x.sqrt(), v.y.sqrt(), v.z.sqrt()) / *a).powi(2))
+        let mut texels: Vec<Texel> = (0..n)
+            .map(|i| {
+                let illumination = colour[i] / albedo[i];
+                let v = variance[i];
+                // The luminance's standard deviation, channels taken as fully correlated (one
+                // path makes all three), then squared.
+                let sd = luminance(Vec3::new(v.x.sqrt(), v.y.sqrt(), v.z.sqrt()) / albedo[i]);
+                Texel {
+                    normal: guide.normal[i],
+                    footprint: guide.footprint[i],
+                    position: guide.position[i],
+                    luminance: luminance(illumination),
+                    illumination,
+                    var: sd * sd,
+                }
+            })
             .collect();
         for pass in 0..self.passes {
-            (illumination, var) = self.pass(&illumination, &var, guide, 1 << pass);
+            texels = self.pass(&texels, guide.width as i32, guide.height as i32, 1 << pass);
         }
-        illumination
+        texels
             .iter()
             .zip(&albedo)
             .enumerate()
-            .map(|(i, (l, a))| if guide.is_surface(i) { *l * *a } else { colour[i] })
+            .map(|(i, (t, a))| if t.is_surface() { t.illumination * *a } else { colour[i] })
             .collect()
     }
 
-    /// One pass with taps `step` pixels apart; returns the filtered illumination and its
-    /// variance.
-    fn pass(&self, illumination: &[Vec3], var: &[f32], guide: &Guide, step: i32) -> (Vec<Vec3>, Vec<f32>) {
-        let (w, h) = (guide.width as i32, guide.height as i32);
+    /// One pass with taps `step` pixels apart: the filtered illumination and its variance.
+    fn pass(&self, texels: &[Texel], w: i32, h: i32, step: i32) -> Vec<Texel> {
         (0..w * h)
             .into_par_iter()
+            .with_min_len(256)
             .map(|i| {
-                let p = i as usize;
-                if !guide.is_surface(p) {
-                    return (illumination[p], var[p]);
+                let p = &texels[i as usize];
+                if !p.is_surface() {
+                    return *p;
                 }
                 let (x, y) = (i % w, i / w);
-                let (n_p, x_p, l_p) = (guide.normal[p], guide.position[p], luminance(illumination[p]));
-                let luminance_scale = 1.0 / (self.sigma_luminance * blurred_variance(var, guide, x, y).sqrt() + 1e-6);
+                let luminance_scale = 1.0 / (self.sigma_luminance * blurred_variance(texels, w, h, x, y).sqrt() + 1e-6);
+                let plane_scale = 1.0 / (self.sigma_plane * p.footprint * step as f32);
                 let (mut sum, mut sum_var, mut total) = (Vec3::ZERO, 0.0f32, 0.0f32);
                 for (dy, ky) in (-2..=2).zip(KERNEL) {
                     let qy = y + dy * step;
@@ -206,29 +235,48 @@ impl Atrous {
                         if !(0..w).contains(&qx) {
                             continue;
                         }
-                        let q = (qy * w + qx) as usize;
-                        if !guide.is_surface(q) {
+                        let q = &texels[(qy * w + qx) as usize];
+                        if !q.is_surface() {
                             continue;
                         }
-                        let weight = if q == p {
+                        let weight = if dx == 0 && dy == 0 {
                             kx * ky
                         } else {
-                            let normal = n_p.dot(guide.normal[q]).max(0.0).powf(self.sigma_normal);
-                            let reach = guide.footprint[p] * step as f32 * ((dx * dx + dy * dy) as f32).sqrt();
-                            let plane = n_p.dot(guide.position[q] - x_p).abs() / (self.sigma_plane * reach);
-                            let light = (luminance(illumination[q]) - l_p).abs() * luminance_scale;
-                            kx * ky * normal * (-plane - light).exp()
+                            let mut normal = p.normal.dot(q.normal).max(0.0);
+                            for _ in 0..NORMAL_POWER {
+                                normal *= normal;
+                            }
+                            let distance = OFFSET_LENGTH[(dy + 2) as usize][(dx + 2) as usize];
+                            let plane = p.normal.dot(q.position - p.position).abs() * plane_scale / distance;
+                            let light = (q.luminance - p.luminance).abs() * luminance_scale;
+                            // Beyond e^-20 a tap counts for nothing (and exp's underflow path
+                            // is slow).
+                            let exponent = plane + light;
+                            if exponent > 20.0 || normal < 1e-9 {
+                                continue;
+                            }
+                            kx * ky * normal * (-exponent).exp()
                         };
-                        sum += illumination[q] * weight;
-                        sum_var += var[q] * weight * weight;
+                        sum += q.illumination * weight;
+                        sum_var += q.var * weight * weight;
                         total += weight;
                     }
                 }
-                (sum / total, sum_var / (total * total))
+                let illumination = sum / total;
+                Texel { illumination, luminance: luminance(illumination), var: sum_var / (total * total), ..*p }
             })
-            .unzip()
+            .collect()
     }
 }
+
+/// `sqrt(dx² + dy²)` of the kernel's taps (the centre's, unused, is 1).
+const OFFSET_LENGTH: [[f32; 5]; 5] = [
+    [2.828_427, 2.236_068, 2.0, 2.236_068, 2.828_427],
+    [2.236_068, 1.414_213_6, 1.0, 1.414_213_6, 2.236_068],
+    [2.0, 1.0, 1.0, 1.0, 2.0],
+    [2.236_068, 1.414_213_6, 1.0, 1.414_213_6, 2.236_068],
+    [2.828_427, 2.236_068, 2.0, 2.236_068, 2.828_427],
+];
 
 #[cfg(test)]
 mod tests {
