@@ -18,19 +18,18 @@
 //! surfaces.
 //! The [`Guide`] buffers come from the camera's first hits.
 
-use crate::material::Material;
 use crate::render::Renderer;
 use crate::sampler::Pcg32;
 use glam::Vec3;
 use rayon::prelude::*;
+use std::f32::consts::SQRT_2;
 
 /// The first surface each pixel sees: what the filter is guided by.
 #[derive(Clone, Debug)]
 pub struct Guide {
     pub width: u32,
     pub height: u32,
-    /// Reflectance of the first hit, averaged over the pixel (white for glass, the emission
-    /// clamped to 1 for lights, white for the sky).
+    /// [`crate::material::Material::albedo`] of the first hit, averaged over the pixel (white for the sky).
     pub albedo: Vec<Vec3>,
     /// Unit normal facing the camera at the pixel's centre (zero: no surface).
     pub normal: Vec<Vec3>,
@@ -39,15 +38,6 @@ pub struct Guide {
     /// Width of a pixel at that distance (0: no surface to filter: the sky, or a light seen
     /// by any of the pixel's rays).
     pub footprint: Vec<f32>,
-}
-
-/// How a material reflects, for the albedo buffer.
-fn reflectance(material: &Material) -> Vec3 {
-    match material {
-        Material::Lambertian { albedo } | Material::Metal { albedo, .. } => *albedo,
-        Material::Dielectric { .. } => Vec3::ONE,
-        Material::Emissive { emit, .. } => emit.min(Vec3::ONE),
-    }
 }
 
 impl Guide {
@@ -73,7 +63,7 @@ impl Guide {
                             let surface = geometry.surface_point(&ray, &hit);
                             let material = &materials[surface.material as usize];
                             sees_light |= material.is_emissive();
-                            reflectance(material)
+                            material.albedo()
                         }
                         None => Vec3::ONE,
                     };
@@ -272,9 +262,9 @@ impl Atrous {
 /// `sqrt(dx² + dy²)` of the kernel's taps (the centre's, unused, is 1).
 const OFFSET_LENGTH: [[f32; 5]; 5] = [
     [2.828_427, 2.236_068, 2.0, 2.236_068, 2.828_427],
-    [2.236_068, 1.414_213_6, 1.0, 1.414_213_6, 2.236_068],
+    [2.236_068, SQRT_2, 1.0, SQRT_2, 2.236_068],
     [2.0, 1.0, 1.0, 1.0, 2.0],
-    [2.236_068, 1.414_213_6, 1.0, 1.414_213_6, 2.236_068],
+    [2.236_068, SQRT_2, 1.0, SQRT_2, 2.236_068],
     [2.828_427, 2.236_068, 2.0, 2.236_068, 2.828_427],
 ];
 

@@ -42,6 +42,16 @@ impl Material {
         }
     }
 
+    /// The colour a surface gives what it reflects (white for glass; for a light, its emission's
+    /// hue at unit brightness): the viewer's albedo mode and the denoiser's albedo guide.
+    pub fn albedo(&self) -> Vec3 {
+        match self {
+            Material::Lambertian { albedo } | Material::Metal { albedo, .. } => *albedo,
+            Material::Dielectric { .. } => Vec3::ONE,
+            Material::Emissive { emit, .. } => *emit / emit.max_element().max(1e-6),
+        }
+    }
+
     pub fn is_emissive(&self) -> bool {
         matches!(self, Material::Emissive { .. })
     }

@@ -21,10 +21,10 @@
 
 use crate::animation::Animator;
 use crate::camera::CameraDesc;
+use crate::denoise::{Atrous, Guide};
 use crate::film::Film;
 use crate::geometry::Geometry;
 use crate::lights::LightSet;
-use crate::material::Material;
 use crate::output::{srgb_encode, turbo};
 use crate::rebuild::AsyncRebuilder;
 use crate::render::Renderer;
@@ -112,6 +112,9 @@ pub struct PipelineSettings {
     /// Sample the lights at diffuse hits with MIS (see [`crate::lights`]) instead of relying
     /// on paths hitting them.
     pub explicit_lights: bool,
+    /// Show the accumulated image denoised ([`crate::denoise`]) once it has 2, 4, 8, …
+    /// samples (then every 64), in colour mode.
+    pub denoise: bool,
 }
 
 /// What one frame cost and produced.
@@ -135,6 +138,9 @@ pub struct FrameReport {
     /// directly, the packing alone ([`Geometry::set_part_wide`]).
     pub wide_ms: f64,
     pub render_ms: f64,
+    /// Denoising the accumulated image (and tracing its guide after a restart), on the
+    /// frames that do.
+    pub denoise_ms: f64,
     /// Everything above.
     pub frame_ms: f64,
     pub rays: u64,
@@ -157,12 +163,12 @@ impl FrameReport {
     /// The columns of [`FrameReport::csv_row`]: what `phr view --headless` and `phr animate`
     /// write per frame.
     pub const CSV_HEADER: &'static str =
-        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,tree_age";
+        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,tree_age,denoise_ms";
 
     /// This frame as a CSV row of [`FrameReport::CSV_HEADER`]'s columns.
     pub fn csv_row(&self) -> String {
         format!(
-            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{}",
+            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{},{:.3}",
             self.frame,
             self.time,
             self.moved as u8,
@@ -177,7 +183,8 @@ impl FrameReport {
             self.sah_cost,
             self.build_cost,
             self.samples,
-            self.tree_age
+            self.tree_age,
+            self.denoise_ms
         )
     }
 
@@ -211,6 +218,10 @@ pub struct FramePipeline {
     settings: PipelineSettings,
     camera: CameraDesc,
     film: Film,
+    /// The denoiser's guide for the current view (traced at the first denoising after a
+    /// restart) and the last denoised image.
+    guide: Option<Guide>,
+    denoised: Option<Vec<Vec3>>,
     samples: u32,
     frame: u64,
     seed: u64,
@@ -254,6 +265,8 @@ impl FramePipeline {
             settings,
             camera,
             film,
+            guide: None,
+            denoised: None,
             samples: 0,
             frame: 0,
             seed: 0,
@@ -328,6 +341,8 @@ impl FramePipeline {
     pub fn restart(&mut self) {
         self.film.clear();
         self.samples = 0;
+        self.guide = None;
+        self.denoised = None;
     }
 
     /// Renders one frame: advances the animation by `dt` seconds (times the speed) if it is
@@ -364,9 +379,19 @@ impl FramePipeline {
         let render_start = Instant::now();
         let (pixels, rays) = self.render();
         report.render_ms = ms_since(render_start);
-        report.frame_ms = ms_since(start);
         self.film.add_frame(&pixels);
         self.samples += 1;
+        let s = self.samples;
+        if self.settings.denoise
+            && self.settings.mode == ViewMode::Colour
+            && s >= 2
+            && (s.is_power_of_two() || s.is_multiple_of(64))
+        {
+            let denoise_start = Instant::now();
+            self.denoise();
+            report.denoise_ms = ms_since(denoise_start);
+        }
+        report.frame_ms = ms_since(start);
         self.frame += 1;
         report.moved = moved;
         report.time = self.time;
@@ -574,7 +599,7 @@ impl FramePipeline {
             ViewMode::Albedo => renderer.render_frame_with(frame, |ray, _| match geometry.intersect(&ray) {
                 Some(hit) => {
                     let sp = geometry.surface_point(&ray, &hit);
-                    (albedo(&self.scene.materials[sp.material as usize]), 1)
+                    (self.scene.materials[sp.material as usize].albedo(), 1)
                 }
                 None => (self.scene.background.radiance(ray.dir.normalize()), 1),
             }),
@@ -590,14 +615,30 @@ impl FramePipeline {
         (pixels, stats.rays)
     }
 
-    /// The accumulated image (linear radiance, row-major from the top left).
-    pub fn image(&self) -> Vec<Vec3> {
-        self.film.mean()
+    /// Denoises the film as it is now, tracing the guide first if the film restarted.
+    fn denoise(&mut self) {
+        if self.guide.is_none() {
+            let s = &self.settings;
+            let size = RenderSettings { width: s.width, height: s.height, spp: 1, max_depth: s.max_depth.max(1) };
+            let renderer = Renderer::new(&self.scene, &self.geometry, &self.camera, &size, None).with_seed(self.seed);
+            self.guide = Some(Guide::render(&renderer, GUIDE_SAMPLES));
+        }
+        let guide = self.guide.as_ref().expect("traced above");
+        self.denoised = Some(Atrous::default().denoise(&self.film.mean(), &self.film.variance_of_mean(), guide));
     }
 
-    /// The accumulated image as 8-bit sRGB RGBA, for display.
+    /// The accumulated image (linear radiance, row-major from the top left): the last
+    /// denoised one when denoising is on and there is one since the film restarted.
+    pub fn image(&self) -> Vec<Vec3> {
+        match &self.denoised {
+            Some(image) if self.settings.denoise => image.clone(),
+            _ => self.film.mean(),
+        }
+    }
+
+    /// [`FramePipeline::image`] as 8-bit sRGB RGBA, for display.
     pub fn image_rgba8(&self) -> Vec<u8> {
-        let mean = self.film.mean();
+        let mean = self.image();
         let mut out = Vec::with_capacity(mean.len() * 4);
         for p in mean {
             for c in p.to_array() {
@@ -625,13 +666,9 @@ fn posed_geometry(scene: &Scene, animator: &mut Animator, pipeline: PipelineKind
     geometry
 }
 
-fn albedo(m: &Material) -> Vec3 {
-    match m {
-        Material::Lambertian { albedo } | Material::Metal { albedo, .. } => *albedo,
-        Material::Dielectric { .. } => Vec3::ONE,
-        Material::Emissive { emit, .. } => *emit / emit.max_element().max(1e-6),
-    }
-}
+/// Jittered first hits per pixel for the viewer's denoising guide (the albedo's
+/// anti-aliasing; a few keep the guide cheap when the film restarts every frame).
+const GUIDE_SAMPLES: u32 = 4;
 
 fn ms_since(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3

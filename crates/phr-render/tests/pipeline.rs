@@ -43,6 +43,11 @@ fn pipeline(builder: Builder, explicit_lights: bool) -> FramePipeline {
     pipeline_of(PipelineKind::Thesis, builder, explicit_lights)
 }
 
+/// An image's bits, for exact comparisons.
+fn bits(v: &[Vec3]) -> Vec<[u32; 3]> {
+    v.iter().map(|p| p.to_array().map(f32::to_bits)).collect()
+}
+
 fn pipeline_of(kind: PipelineKind, builder: Builder, explicit_lights: bool) -> FramePipeline {
     let scene = parse_scene(SCENE, Path::new("moving_light.json")).unwrap();
     let camera = scene.view(None).unwrap();
@@ -54,6 +59,7 @@ fn pipeline_of(kind: PipelineKind, builder: Builder, explicit_lights: bool) -> F
         max_depth: 4,
         mode: ViewMode::Colour,
         explicit_lights,
+        denoise: false,
     };
     FramePipeline::new(scene, settings, camera)
 }
@@ -153,7 +159,6 @@ fn a_moving_frame_shows_only_the_new_pose_with_lights_where_they_are() {
             let report = p.step(0.25);
             assert_eq!(report.samples, 1, "{kind:?}, lights {lights}, frame {frame}: the film was not restarted");
             let expected = fresh_render(&p, report.frame as u32, lights);
-            let bits = |v: &[Vec3]| v.iter().map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
             assert!(bits(&p.image()) == bits(&expected), "{kind:?}, lights {lights}, frame {frame}: image differs");
             assert!(expected.iter().any(|c| c.max_element() > 0.1), "lights {lights}: a dark image proves nothing");
         }
@@ -180,4 +185,36 @@ fn paused_pipeline_keeps_its_tree_and_accumulates(kind: PipelineKind) {
     }
     assert_eq!(p.geometry().bvh().nodes.len(), nodes);
     assert_eq!(p.geometry().triangles, triangles);
+}
+
+/// With denoising on, the first frame is shown raw, the second (2 samples) denoised: smoother
+/// than the raw mean of the same samples, which a pipeline without denoising shows; a new
+/// camera shows raw samples again until there are two.
+#[test]
+fn denoising_shows_a_smoother_image_from_two_samples_on() {
+    let mut plain = pipeline(Builder::default(), true);
+    let mut denoised = pipeline(Builder::default(), true);
+    // Paused: a playing animation restarts the film every frame.
+    plain.playing = false;
+    denoised.playing = false;
+    let mut settings = denoised.settings().clone();
+    settings.denoise = true;
+    denoised.set_settings(settings);
+    plain.step(0.0);
+    denoised.step(0.0);
+    assert_eq!(bits(&plain.image()), bits(&denoised.image()), "one sample: nothing to denoise yet");
+    let report = plain.step(0.0);
+    let report_denoised = denoised.step(0.0);
+    assert_eq!(report.denoise_ms, 0.0);
+    assert!(report_denoised.denoise_ms > 0.0);
+    let roughness = |image: &[Vec3]| image.windows(2).map(|p| (p[0] - p[1]).abs().element_sum()).sum::<f32>();
+    let (raw, smooth) = (plain.image(), denoised.image());
+    assert!(roughness(&smooth) < 0.8 * roughness(&raw), "{} vs raw {}", roughness(&smooth), roughness(&raw));
+    let mut camera = denoised.camera().clone();
+    camera.position += Vec3::new(0.1, 0.0, 0.0);
+    denoised.set_camera(camera.clone());
+    plain.set_camera(camera);
+    plain.step(0.0);
+    denoised.step(0.0);
+    assert_eq!(bits(&plain.image()), bits(&denoised.image()), "after a restart: raw again");
 }

@@ -6,6 +6,7 @@ mod camera_control;
 mod headless;
 mod window;
 
+use crate::render::Denoiser;
 use crate::scene_arg::{open_scene, BUILTIN};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
@@ -69,6 +70,10 @@ pub struct ViewArgs {
     /// default); `implicit` only counts lights that paths happen to hit, the thesis's estimator.
     #[arg(long, value_enum, default_value = "explicit")]
     light_sampling: LightSampling,
+    /// `atrous`: while the view is still, the accumulated image is shown denoised once it
+    /// has 2, 4, 8, … samples (then every 64); `none`: the raw mean.
+    #[arg(long, value_enum, default_value = "atrous")]
+    denoiser: Denoiser,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -159,6 +164,7 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
         max_depth,
         mode: args.mode.into(),
         explicit_lights: args.light_sampling == LightSampling::Explicit,
+        denoise: args.denoiser == Denoiser::Atrous,
     };
     let mut pipeline = FramePipeline::new(scene, settings, camera);
     pipeline.playing = !args.paused;

@@ -480,7 +480,8 @@ impl ViewerApp {
         ui.strong("Image");
         ui.add(egui::Slider::new(&mut self.scale, 0.25..=2.0).text("resolution scale"));
         ui.add(egui::Slider::new(&mut self.controls.settings.max_depth, 1..=16).text("max depth"));
-        ui.checkbox(&mut self.controls.settings.explicit_lights, "explicit light sampling (NEE)");
+        ui.checkbox(&mut self.controls.settings.explicit_lights, "light sampling (MIS)");
+        ui.checkbox(&mut self.controls.settings.denoise, "denoise (à-trous)");
         ui.horizontal_wrapped(|ui| {
             for mode in ViewMode::ALL {
                 ui.radio_value(&mut self.controls.settings.mode, mode, mode.name());
