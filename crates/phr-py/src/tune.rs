@@ -31,6 +31,7 @@ fn thesis_scene(vertices: &[glam::Vec3], triangles: &[[u32; 3]]) -> phr_render::
         positions: vertices.to_vec(),
         triangles: triangles.to_vec(),
         triangle_material: vec![material; triangles.len()],
+        uvs: Vec::new(),
     });
     apply_thesis_setting(&mut scene);
     let camera = scene.framing_camera();

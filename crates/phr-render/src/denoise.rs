@@ -29,7 +29,7 @@ use std::f32::consts::SQRT_2;
 pub struct Guide {
     pub width: u32,
     pub height: u32,
-    /// [`crate::material::Material::albedo`] of the first hit, averaged over the pixel (white for the sky).
+    /// [`crate::integrator::PathTracer::albedo_at`] the first hit, averaged over the pixel (white for the sky).
     pub albedo: Vec<Vec3>,
     /// Unit normal facing the camera at the pixel's centre (zero: no surface).
     pub normal: Vec<Vec3>,
@@ -46,7 +46,7 @@ impl Guide {
     pub fn render(renderer: &Renderer, samples: u32) -> Guide {
         let (w, h) = (renderer.width, renderer.height);
         let geometry = renderer.tracer.geometry;
-        let materials = renderer.tracer.materials;
+        let tracer = &renderer.tracer;
         let camera = &renderer.camera;
         let pixels: Vec<(Vec3, Vec3, Vec3, f32)> = (0..w * h)
             .into_par_iter()
@@ -61,9 +61,8 @@ impl Guide {
                     albedo += match geometry.intersect(&ray) {
                         Some(hit) => {
                             let surface = geometry.surface_point(&ray, &hit);
-                            let material = &materials[surface.material as usize];
-                            sees_light |= material.is_emissive();
-                            material.albedo()
+                            sees_light |= tracer.materials[surface.material as usize].is_emissive();
+                            tracer.albedo_at(&surface, &hit)
                         }
                         None => Vec3::ONE,
                     };

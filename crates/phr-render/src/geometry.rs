@@ -27,7 +27,7 @@
 //! traversal, whose node counts are the thesis's traversal steps.
 
 use crate::scene::{Scene, SphereObject};
-use glam::{Affine3A, Vec3};
+use glam::{Affine3A, Vec2, Vec3};
 use phr_bvh::builder::BuildReport;
 use phr_bvh::instance::{Instance, TopLevel};
 use phr_bvh::sphere::Sphere;
@@ -86,6 +86,9 @@ pub struct Geometry {
     /// Scene order; in the object space of the part holding them (see the module documentation).
     pub triangles: Vec<[Vec3; 3]>,
     pub triangle_material: Vec<u32>,
+    /// Texture coordinates of each triangle's corners, in scene order; empty when no mesh
+    /// has any (meshes without them get zeros).
+    pub triangle_uv: Vec<[Vec2; 3]>,
     pub spheres: Vec<SphereObject>,
     /// The primitives' boxes, in the same space as the primitives.
     pub boxes: Vec<Aabb>,
@@ -191,9 +194,22 @@ impl Geometry {
                 triangle_material.push(m);
             }
         }
+        let triangle_uv = if scene.meshes.iter().any(|m| !m.uvs.is_empty()) {
+            let mut uv = Vec::with_capacity(n);
+            for mesh in &scene.meshes {
+                match mesh.uvs.len() {
+                    0 => uv.extend(std::iter::repeat_n([Vec2::ZERO; 3], mesh.triangles.len())),
+                    _ => uv.extend_from_slice(&mesh.uvs),
+                }
+            }
+            uv
+        } else {
+            Vec::new()
+        };
         let mut g = Self {
             triangles,
             triangle_material,
+            triangle_uv,
             spheres: scene.spheres.clone(),
             boxes: Vec::new(),
             parts: vec![Part::default()],
@@ -641,6 +657,15 @@ impl Geometry {
         let front = ray.dir.dot(normal) < 0.0;
         let offset = rel * (1.0 + position.abs().max_element());
         SurfacePoint { position, normal, front, material, offset }
+    }
+
+    /// The texture coordinates at a hit (zero for spheres and meshes without any).
+    #[inline]
+    pub fn uv(&self, hit: &Hit) -> Vec2 {
+        match self.triangle_uv.get(hit.prim as usize) {
+            Some([a, b, c]) => *a + (*b - *a) * hit.u + (*c - *a) * hit.v,
+            None => Vec2::ZERO,
+        }
     }
 
     /// Position, unit normal, material and relative offset of a hit in `part`'s object space

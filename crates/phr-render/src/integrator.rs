@@ -13,11 +13,12 @@
 //! throughput has become small. The expected image is the same (the reference checks run
 //! with both).
 
-use crate::geometry::Geometry;
+use crate::geometry::{Geometry, Hit, SurfacePoint};
 use crate::lights::{power_heuristic, LightSet};
 use crate::material::{Interaction, Material};
 use crate::sampler::Pcg32;
 use crate::scene::Background;
+use crate::texture::Texture;
 use glam::Vec3;
 use phr_bvh::Ray;
 use std::f32::consts::FRAC_1_PI;
@@ -28,6 +29,10 @@ pub const RR_START: u32 = 3;
 pub struct PathTracer<'a> {
     pub geometry: &'a Geometry,
     pub materials: &'a [Material],
+    /// The scene's textures, and each material's colour texture (see
+    /// [`crate::scene::Scene::material_texture`]).
+    pub textures: &'a [Texture],
+    pub material_texture: &'a [Option<u32>],
     pub background: &'a Background,
     /// Maximum number of segments per path, the camera ray included.
     pub max_depth: u32,
@@ -80,12 +85,30 @@ impl PathTracer<'_> {
             match material.scatter(ray.dir, surface.normal, surface.front, rng) {
                 Interaction::Absorb => break,
                 Interaction::Scatter { dir, weight } => {
-                    throughput *= weight;
+                    throughput *= self.textured(weight, &surface, &hit);
                     ray = Ray::new(surface.spawn_origin(dir), dir);
                 }
             }
         }
         PathSample { radiance, rays }
+    }
+
+    /// A Lambertian hit's scattering weight (its albedo, `weight`) with its material's
+    /// texture, if it has one, in place of the albedo.
+    #[inline]
+    fn textured(&self, weight: Vec3, surface: &SurfacePoint, hit: &Hit) -> Vec3 {
+        match self.material_texture.get(surface.material as usize) {
+            Some(Some(t)) if matches!(self.materials[surface.material as usize], Material::Lambertian { .. }) => {
+                self.textures[*t as usize].sample(self.geometry.uv(hit))
+            }
+            _ => weight,
+        }
+    }
+
+    /// [`Material::albedo`] at a hit, textured: the viewer's albedo mode and the denoiser's
+    /// guide.
+    pub fn albedo_at(&self, surface: &SurfacePoint, hit: &Hit) -> Vec3 {
+        self.textured(self.materials[surface.material as usize].albedo(), surface, hit)
     }
 
     /// Light sampling at diffuse hits, MIS with BSDF sampling, Russian roulette.
@@ -121,7 +144,7 @@ impl PathTracer<'_> {
             }
             let facing = if surface.front { surface.normal } else { -surface.normal };
             let diffuse = match material {
-                Material::Lambertian { albedo } => Some(*albedo),
+                Material::Lambertian { albedo } => Some(self.textured(*albedo, &surface, &hit)),
                 _ => None,
             };
             if let Some(albedo) = diffuse {
@@ -148,7 +171,7 @@ impl PathTracer<'_> {
             match material.scatter(ray.dir, surface.normal, surface.front, rng) {
                 Interaction::Absorb => break,
                 Interaction::Scatter { dir, weight } => {
-                    throughput *= weight;
+                    throughput *= diffuse.unwrap_or(weight);
                     lit = diffuse.map(|_| {
                         let pdf = facing.dot(dir.normalize()).max(0.0) * FRAC_1_PI;
                         LitVertex { position: surface.position, facing, pdf }

@@ -24,6 +24,7 @@ pub mod rebuild;
 pub mod render;
 pub mod sampler;
 pub mod scene;
+pub mod texture;
 
 pub use error::LoadError;
 pub use scene::Scene;

@@ -599,7 +599,7 @@ impl FramePipeline {
             ViewMode::Albedo => renderer.render_frame_with(frame, |ray, _| match geometry.intersect(&ray) {
                 Some(hit) => {
                     let sp = geometry.surface_point(&ray, &hit);
-                    (self.scene.materials[sp.material as usize].albedo(), 1)
+                    (renderer.tracer.albedo_at(&sp, &hit), 1)
                 }
                 None => (self.scene.background.radiance(ray.dir.normalize()), 1),
             }),

@@ -49,6 +49,8 @@ impl<'a> Renderer<'a> {
             tracer: PathTracer {
                 geometry,
                 materials: &scene.materials,
+                textures: &scene.textures,
+                material_texture: &scene.material_texture,
                 background: &scene.background,
                 max_depth,
                 lights,

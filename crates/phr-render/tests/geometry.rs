@@ -64,6 +64,7 @@ fn scene(triangles: usize, spheres: usize, seed: u64) -> Scene {
         positions: tris.iter().flatten().copied().collect(),
         triangles: (0..tris.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
         triangle_material: (0..tris.len() as u32).map(|i| i % 2).collect(),
+        uvs: Vec::new(),
     });
     scene.spheres =
         balls.into_iter().enumerate().map(|(i, sphere)| SphereObject { sphere, material: i as u32 % 2 }).collect();

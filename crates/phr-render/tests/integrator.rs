@@ -151,7 +151,13 @@ fn direct_light_on_a_floor_matches_lamberts_polygon_formula() {
         triangles.push([base, base + 1, base + 2]);
         triangle_material.push(m);
     }
-    scene.meshes.push(Mesh { name: "floor and lights".into(), positions, triangles, triangle_material });
+    scene.meshes.push(Mesh {
+        name: "floor and lights".into(),
+        positions,
+        triangles,
+        triangle_material,
+        uvs: Vec::new(),
+    });
     // Straight down at x through a 0.2° field of view: the footprint is 3.5 mm wide.
     let view = CameraDesc { position: Vec3::new(0.0, 1.0, 0.0), look_at: x, up: Vec3::Z, vfov_degrees: 0.2 };
     for (nee, depth, frames) in [(false, 2, 128), (false, 5, 128), (true, 2, 16), (true, 5, 16)] {

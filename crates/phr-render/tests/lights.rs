@@ -66,6 +66,7 @@ fn scene() -> Scene {
         positions: triangles.iter().flatten().copied().collect(),
         triangles: (0..triangles.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect(),
         triangle_material: materials.to_vec(),
+        uvs: Vec::new(),
     });
     let sphere = Sphere { center: v(0.0, 0.0, 20.0), radius: 1.0 };
     scene.spheres.push(SphereObject { sphere, material: a });

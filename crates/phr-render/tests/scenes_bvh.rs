@@ -115,6 +115,7 @@ fn check_scene(file: &Path, rays: usize, seed: u64) -> (usize, usize) {
         positions: data.positions.clone(),
         triangles: data.triangles.clone(),
         triangle_material: vec![0; n],
+        uvs: Vec::new(),
     });
     let mut geometry = Geometry::new(&scene);
     assert_eq!(geometry.triangles, tris);

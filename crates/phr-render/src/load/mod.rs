@@ -20,6 +20,8 @@ pub struct MtlEntry {
     /// Dissolve (`d`), or `1 - Tr`.
     pub d: Option<f32>,
     pub illum: Option<u32>,
+    /// The diffuse colour texture (`map_Kd`), resolved against the MTL file's folder.
+    pub map_kd: Option<std::path::PathBuf>,
 }
 
 /// A material as glTF describes it (metallic-roughness, emissive, transmission).
@@ -69,6 +71,9 @@ pub struct MeshData {
     pub group_materials: Vec<SourceMaterial>,
     /// Cameras the file defines (glTF only).
     pub cameras: Vec<SourceCamera>,
+    /// Texture coordinates of each triangle's corners (OBJ `vt`), or empty when the file
+    /// has none.
+    pub uvs: Vec<[[f32; 2]; 3]>,
     /// Keyframed node animations (glTF only), posing ranges of `positions`.
     pub animation: Option<Box<crate::motion::NodeAnimation>>,
 }
@@ -194,6 +199,7 @@ pub(crate) fn finish(path: &Path, mesh: MeshData) -> Result<MeshData, LoadError>
         return Err(LoadError::new(path, message));
     }
     let groups_ok = mesh.triangle_group.len() == mesh.triangles.len()
+        && (mesh.uvs.is_empty() || mesh.uvs.len() == mesh.triangles.len())
         && mesh.group_materials.len() == mesh.groups.len()
         && mesh.triangle_group.iter().all(|&g| (g as usize) < mesh.groups.len());
     if !groups_ok {

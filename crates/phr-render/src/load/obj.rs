@@ -1,13 +1,14 @@
 //! Wavefront OBJ and MTL reader, written by hand so every error carries its line number.
 //!
-//! Reads `v` (the first three coordinates), `f` (the `v`, `v/vt`, `v//vn` and `v/vt/vn` forms,
-//! positive and negative indices, polygons fan-triangulated), `usemtl` (one group per material
-//! name, in first-use order; faces before any `usemtl` go to group `default`) and `mtllib`
-//! (paths relative to the OBJ's folder). `g`, `o`, `s`, `vt`, `vn`, lines and points are
-//! ignored: the renderer flat-shades and groups by material only.
+//! Reads `v` (the first three coordinates), `vt` (texture coordinates), `f` (the `v`, `v/vt`,
+//! `v//vn` and `v/vt/vn` forms, positive and negative indices, polygons fan-triangulated),
+//! `usemtl` (one group per material name, in first-use order; faces before any `usemtl` go to
+//! group `default`) and `mtllib` (paths relative to the OBJ's folder). `g`, `o`, `s`, `vn`,
+//! lines and points are ignored: the renderer flat-shades and groups by material only.
 //!
 //! Limits: no line continuation (`\`), no free-form geometry, file names without spaces in
-//! `mtllib`. From MTL files only `Kd Ks Ke Tf Ns Ni d Tr illum` are read (see [`MtlEntry`]).
+//! `mtllib`. From MTL files only `Kd Ks Ke Tf Ns Ni d Tr illum map_Kd` are read (see
+//! [`MtlEntry`]); `map_Kd` options (`-s`, `-o`, ...) are skipped, its file is the last word.
 
 use super::{check_finite, finish, Location, MeshData, MtlEntry, MtlLibrary, SourceMaterial};
 use crate::error::LoadError;
@@ -43,7 +44,16 @@ struct Parser<'a> {
     /// The largest positive (1-based) face index seen, and its line (0 and 0 before any):
     /// positive indices may refer to vertices defined later, so they are checked at the end.
     max_index: (u64, usize),
+    /// `vt` coordinates so far.
+    texcoords: Vec<[f32; 2]>,
+    /// Each triangle's corners' `vt` indices (0-based; [`NO_VT`] where a corner has none).
+    triangle_vt: Vec<[u32; 3]>,
+    /// Like `max_index`, for `vt` indices.
+    max_vt: (u64, usize),
 }
+
+/// A face corner without a texture coordinate.
+const NO_VT: u32 = u32::MAX;
 
 impl<'a> Parser<'a> {
     fn new(path: &'a Path, base_dir: &'a Path) -> Self {
@@ -57,6 +67,9 @@ impl<'a> Parser<'a> {
             material: None,
             group: None,
             max_index: (0, 0),
+            texcoords: Vec::new(),
+            triangle_vt: Vec::new(),
+            max_vt: (0, 0),
         }
     }
 
@@ -65,6 +78,7 @@ impl<'a> Parser<'a> {
         let mut tokens = line.split_ascii_whitespace();
         match tokens.next() {
             Some("v") => self.vertex(tokens, line_no),
+            Some("vt") => self.texcoord(tokens, line_no),
             Some("f") => self.face(tokens, line_no),
             Some("usemtl") => self.use_material(rest_after_keyword(line, "usemtl"), line_no),
             Some("mtllib") => self.material_library(tokens, line_no),
@@ -91,6 +105,28 @@ impl<'a> Parser<'a> {
         Ok(())
     }
 
+    /// `vt u [v [w]]`: the first two (v is 0 when missing).
+    fn texcoord(&mut self, mut tokens: SplitAsciiWhitespace, line_no: usize) -> Result<(), LoadError> {
+        let mut uv = [0.0f32; 2];
+        for (k, value) in uv.iter_mut().enumerate() {
+            let Some(token) = tokens.next() else {
+                if k == 0 {
+                    return Err(self.error(line_no, "texture coordinate needs at least u"));
+                }
+                break;
+            };
+            *value = token.parse().map_err(|_| self.error(line_no, format!("bad number `{token}`")))?;
+            if !value.is_finite() {
+                return Err(self.error(line_no, format!("texture coordinate `{token}` is not finite")));
+            }
+        }
+        if self.texcoords.len() >= u32::MAX as usize - 1 {
+            return Err(self.error(line_no, "too many texture coordinates"));
+        }
+        self.texcoords.push(uv);
+        Ok(())
+    }
+
     /// A polygon, fan-triangulated as (v0, vk, vk+1).
     fn face(&mut self, tokens: SplitAsciiWhitespace, line_no: usize) -> Result<(), LoadError> {
         let group = self.current_group();
@@ -98,10 +134,12 @@ impl<'a> Parser<'a> {
         let mut previous = None;
         let mut count = 0usize;
         for token in tokens {
-            let v = self.vertex_index(token, line_no)?;
+            let v = (self.vertex_index(token, line_no)?, self.texcoord_index(token, line_no)?);
             if let (Some(a), Some(b)) = (first, previous) {
-                self.mesh.triangles.push([a, b, v]);
+                let ((a, ta), (b, tb), (c, tc)): ((u32, u32), (u32, u32), (u32, u32)) = (a, b, v);
+                self.mesh.triangles.push([a, b, c]);
                 self.mesh.triangle_group.push(group);
+                self.triangle_vt.push([ta, tb, tc]);
             }
             if first.is_none() {
                 first = Some(v);
@@ -121,24 +159,26 @@ impl<'a> Parser<'a> {
         let text = token.split('/').next().unwrap_or(token);
         let index: i64 = text.parse().map_err(|_| self.error(line_no, format!("bad vertex index `{token}`")))?;
         let defined = self.mesh.positions.len();
-        let out_of_range = || {
-            let message = format!("face index {index} out of range ({defined} vertices so far)");
-            LoadError::at_line(self.path, line_no, message)
-        };
-        match index {
-            0 => Err(self.error(line_no, "face index 0 (OBJ indices start at 1)")),
-            1.. => {
-                let zero_based = u32::try_from(index - 1).map_err(|_| out_of_range())?;
-                if index as u64 > self.max_index.0 {
-                    self.max_index = (index as u64, line_no);
-                }
-                Ok(zero_based)
+        let resolved = resolve_index(index, defined, line_no, &mut self.max_index);
+        resolved
+            .map_err(|problem| self.error(line_no, format!("face index {index} {problem} ({defined} vertices so far)")))
+    }
+
+    /// The 0-based `vt` index of one face corner ([`NO_VT`] without one).
+    fn texcoord_index(&mut self, token: &str, line_no: usize) -> Result<u32, LoadError> {
+        let Some(text) = token.split('/').nth(1).filter(|t| !t.is_empty()) else { return Ok(NO_VT) };
+        let index: i64 = text.parse().map_err(|_| self.error(line_no, format!("bad texture index `{token}`")))?;
+        let defined = self.texcoords.len();
+        let resolved = resolve_index(index, defined, line_no, &mut self.max_vt).and_then(|i| {
+            if i == NO_VT {
+                Err("out of range")
+            } else {
+                Ok(i)
             }
-            _ => {
-                let resolved = (defined as i64).checked_add(index).filter(|&i| i >= 0);
-                resolved.and_then(|i| u32::try_from(i).ok()).ok_or_else(out_of_range)
-            }
-        }
+        });
+        resolved.map_err(|problem| {
+            self.error(line_no, format!("texture coordinate index {index} {problem} ({defined} so far)"))
+        })
     }
 
     /// The group of the current `usemtl` name, created at its first face.
@@ -198,11 +238,41 @@ impl<'a> Parser<'a> {
             let message = format!("face index {index} out of range ({vertex_count} vertices)");
             return Err(self.error(line_no, message));
         }
+        let (index, line_no) = self.max_vt;
+        if index > self.texcoords.len() as u64 {
+            let message = format!("texture coordinate index {index} out of range ({} of them)", self.texcoords.len());
+            return Err(self.error(line_no, message));
+        }
+        if self.triangle_vt.iter().flatten().any(|&t| t != NO_VT) {
+            let texcoords = &self.texcoords;
+            let uv = |t: u32| if t == NO_VT { [0.0; 2] } else { texcoords[t as usize] };
+            self.mesh.uvs = self.triangle_vt.iter().map(|t| t.map(uv)).collect();
+        }
         let library = &self.library;
         self.mesh.group_materials = (self.mesh.groups.iter())
             .map(|name| library.get(name).cloned().map_or(SourceMaterial::None, SourceMaterial::Mtl))
             .collect();
         finish(self.path, self.mesh)
+    }
+}
+
+/// A 1-based OBJ index (negative: counted back from the `defined` items so far) made 0-based.
+/// Positive ones may name items defined later: the largest, with its line, goes to `max` to
+/// be checked at the end. The error is what is wrong with it.
+fn resolve_index(index: i64, defined: usize, line_no: usize, max: &mut (u64, usize)) -> Result<u32, &'static str> {
+    match index {
+        0 => Err("is invalid: OBJ indices start at 1"),
+        1.. => {
+            let zero_based = u32::try_from(index - 1).map_err(|_| "out of range")?;
+            if index as u64 > max.0 {
+                *max = (index as u64, line_no);
+            }
+            Ok(zero_based)
+        }
+        _ => {
+            let resolved = (defined as i64).checked_add(index).filter(|&i| i >= 0);
+            resolved.and_then(|i| u32::try_from(i).ok()).ok_or("out of range")
+        }
     }
 }
 
@@ -272,7 +342,8 @@ impl MtlBuilder {
             "d" => entry.d = Some(values.skip_halo().number()?),
             "Tr" => self.tr = Some(values.number()?),
             "illum" => entry.illum = Some(values.integer()?),
-            _ => {} // Ka, map_*, bump, ...: not used by the renderer.
+            "map_Kd" => entry.map_kd = Some(values.file()?),
+            _ => {} // Ka, other map_*, bump, ...: not used by the renderer.
         }
         Ok(())
     }
@@ -295,6 +366,13 @@ struct Values<'a> {
 impl Values<'_> {
     fn error(&self, message: impl Into<String>) -> LoadError {
         LoadError::at_line(self.path, self.line_no, message)
+    }
+
+    /// A texture file: the last word (options such as `-s 1 1 1` come first), relative to
+    /// the MTL file's folder.
+    fn file(&mut self) -> Result<std::path::PathBuf, LoadError> {
+        let name = self.tokens.clone().last().ok_or_else(|| self.error("texture map without a file name"))?;
+        Ok(self.path.parent().unwrap_or(Path::new("")).join(name))
     }
 
     /// A finite number.
@@ -350,6 +428,20 @@ mod tests {
         assert_eq!(mesh.groups, vec!["default"]);
         assert_eq!(mesh.group_materials, vec![SourceMaterial::None]);
         assert_eq!(mesh.triangle_group, vec![0; 5]);
+        // Texture coordinates where corners name them, zeros elsewhere.
+        assert_eq!(mesh.uvs.len(), 5);
+        assert_eq!(mesh.uvs[0], [[0.0; 2]; 3]);
+    }
+
+    #[test]
+    fn texture_coordinates_follow_the_corners() {
+        let mesh = parse_str(
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0 0\nvt 1 1\nvt 0.5\n\
+             f 1/1 2/2 3/3 4/-1\n",
+        )
+        .unwrap();
+        assert_eq!(mesh.uvs, vec![[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]], [[0.0, 0.0], [1.0, 1.0], [0.5, 0.0]]]);
+        assert!(parse_str("v 0 0 0\nf 1 1 1\n").unwrap().uvs.is_empty(), "no vt: no uvs");
     }
 
     #[test]
@@ -384,6 +476,11 @@ mod tests {
             ("v 0 0 0\n", "test.obj:", "no triangles"),
             ("", "test.obj:", "no triangles"),
             ("mtllib missing.mtl\n", "test.obj:1:", "missing.mtl"),
+            ("v 0 0 0\nvt 0 0\nf 1/1 1/2 1/1\n", "test.obj:3:", "texture coordinate index 2 out of range"),
+            ("v 0 0 0\nvt 0 0\nf 1/-2 1/1 1/1\n", "test.obj:3:", "out of range"),
+            ("v 0 0 0\nvt 0 0\nf 1/0 1/1 1/1\n", "test.obj:3:", "index 0"),
+            ("v 0 0 0\nvt 0 nan\n", "test.obj:2:", "not finite"),
+            ("vt\n", "test.obj:1:", "needs at least u"),
         ];
         for (text, location, what) in cases {
             let message = parse_str(text).unwrap_err().to_string();
@@ -413,6 +510,7 @@ mod tests {
         assert_eq!(glass.tf, Some([0.9; 3]));
         assert_eq!((glass.ns, glass.ni, glass.d, glass.illum), (Some(100.0), Some(1.5), Some(0.75), Some(4)));
         assert_eq!(library["two words"].d, Some(0.5));
+        assert_eq!(glass.map_kd, Some(PathBuf::from("tex.png")), "relative to the MTL's folder");
         let error = parse_mtl(Path::new("test.mtl"), b"newmtl a\nKd 1 x 1\n").unwrap_err();
         assert_eq!(error.to_string(), "test.mtl:2: bad number `x`");
     }

@@ -46,6 +46,7 @@ pub fn cornell_knot() -> Scene {
             positions: vec![q, q + u, q + v, q + u + v],
             triangles: vec![[0, 1, 2], [1, 3, 2]],
             triangle_material: vec![m; 2],
+            uvs: Vec::new(),
         });
     }
     let mut knot = torus_knot(2, 3, 110.0, 28.0, KNOT_SEGMENTS, TUBE_SEGMENTS);
@@ -102,7 +103,7 @@ pub fn torus_knot(p: u32, q: u32, radius: f32, radius_tube: f32, segments: u32, 
         }
     }
     let n = triangles.len();
-    Mesh { name: "torus knot".into(), positions, triangles, triangle_material: vec![0; n] }
+    Mesh { name: "torus knot".into(), positions, triangles, triangle_material: vec![0; n], uvs: Vec::new() }
 }
 
 #[cfg(test)]

@@ -12,14 +12,14 @@
 //! [`scenes_dir`]); other relative paths are relative to the scene file. `docs/scene-format.md`
 //! documents every key.
 
-use super::materials::{map_source_material, MtlMapping};
+use super::materials::MtlMapping;
 use super::{Background, Mesh, RenderSettings, Scene, SphereObject};
 use crate::camera::CameraDesc;
 use crate::error::LoadError;
 use crate::load::{load_mesh, MeshData};
 use crate::material::Material;
 use crate::motion::{Animation, AnimationTarget, Motion, ObjectAnimation};
-use glam::{Mat4, Quat, Vec3};
+use glam::{Mat4, Quat, Vec2, Vec3};
 use indexmap::IndexMap;
 use phr_bvh::sphere::Sphere;
 use serde::Deserialize;
@@ -558,19 +558,18 @@ impl SceneBuilder<'_> {
                     m.check().map_err(|e| self.err(format!("object {i}: material \"{name}\": {e}")))?;
                 }
                 let data = self.load(file, transform)?;
-                let group_material: Vec<u32> = (0..data.groups.len())
+                let group_material = (0..data.groups.len())
                     .map(|g| {
                         let name = &data.groups[g];
                         if let Some(m) = materials.get(name) {
-                            self.scene.add_material(name.clone(), m.into())
+                            Ok(self.scene.add_material(name.clone(), m.into()))
                         } else if let Some(f) = fallback {
-                            f
+                            Ok(f)
                         } else {
-                            self.scene
-                                .add_material(name.clone(), map_source_material(&data.group_materials[g], mapping))
+                            self.scene.add_source_material(name, &data.group_materials[g], mapping)
                         }
                     })
-                    .collect();
+                    .collect::<Result<Vec<u32>, LoadError>>()?;
                 self.push_grouped(file, data, &group_material);
             }
             ObjectFile::Gltf { file, transform } => {
@@ -580,12 +579,11 @@ impl SceneBuilder<'_> {
                     let target = AnimationTarget::Mesh(self.scene.meshes.len());
                     self.scene.animations.push(ObjectAnimation { target, animation: Animation::Nodes(nodes) });
                 }
-                let group_material: Vec<u32> = (0..data.groups.len())
+                let group_material = (0..data.groups.len())
                     .map(|g| {
-                        let m = map_source_material(&data.group_materials[g], MtlMapping::Full);
-                        self.scene.add_material(data.groups[g].clone(), m)
+                        self.scene.add_source_material(&data.groups[g], &data.group_materials[g], MtlMapping::Full)
                     })
-                    .collect();
+                    .collect::<Result<Vec<u32>, LoadError>>()?;
                 for c in &data.cameras {
                     let desc =
                         CameraDesc { position: c.position, look_at: c.look_at, up: c.up, vfov_degrees: c.vfov_degrees };
@@ -632,11 +630,14 @@ impl SceneBuilder<'_> {
 
     fn push_grouped(&mut self, name: &str, data: MeshData, group_material: &[u32]) {
         let materials = data.triangle_group.iter().map(|&g| group_material[g as usize]).collect();
+        let uvs = data.uvs.iter().map(|t| t.map(Vec2::from)).collect();
         self.push_mesh(name, data.positions, data.triangles, materials);
+        self.scene.meshes.last_mut().expect("pushed").uvs = uvs;
     }
 
     fn push_mesh(&mut self, name: &str, positions: Vec<Vec3>, triangles: Vec<[u32; 3]>, triangle_material: Vec<u32>) {
-        self.scene.meshes.push(Mesh { name: name.to_string(), positions, triangles, triangle_material });
+        let name = name.to_string();
+        self.scene.meshes.push(Mesh { name, positions, triangles, triangle_material, uvs: Vec::new() });
     }
 }
 

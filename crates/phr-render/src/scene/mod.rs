@@ -12,7 +12,8 @@ pub mod materials;
 use crate::camera::CameraDesc;
 use crate::material::Material;
 use crate::motion::ObjectAnimation;
-use glam::Vec3;
+use crate::texture::Texture;
+use glam::{Vec2, Vec3};
 use phr_bvh::sphere::Sphere;
 
 /// Radiance of rays that leave the scene.
@@ -54,6 +55,8 @@ pub struct Mesh {
     pub positions: Vec<Vec3>,
     pub triangles: Vec<[u32; 3]>,
     pub triangle_material: Vec<u32>,
+    /// Texture coordinates of each triangle's corners, or empty (no texture coordinates).
+    pub uvs: Vec<[Vec2; 3]>,
 }
 
 /// A sphere and its material.
@@ -125,6 +128,13 @@ pub struct Scene {
     pub settings: RenderSettings,
     /// What moves (empty for a static scene); see [`crate::motion`].
     pub animations: Vec<ObjectAnimation>,
+    /// Colour textures, each loaded once however many materials use it.
+    pub textures: Vec<Texture>,
+    /// The file each texture came from (to share them).
+    pub texture_files: Vec<std::path::PathBuf>,
+    /// For each material, its colour texture: a Lambertian surface's albedo is the texture's
+    /// colour at the hit's texture coordinates instead of its `albedo`.
+    pub material_texture: Vec<Option<u32>>,
 }
 
 impl Default for Scene {
@@ -138,6 +148,9 @@ impl Default for Scene {
             views: Vec::new(),
             settings: RenderSettings::default(),
             animations: Vec::new(),
+            textures: Vec::new(),
+            texture_files: Vec::new(),
+            material_texture: Vec::new(),
         }
     }
 }
@@ -147,7 +160,45 @@ impl Scene {
     pub fn add_material(&mut self, name: impl Into<String>, m: Material) -> u32 {
         self.materials.push(m);
         self.material_names.push(name.into());
+        self.material_texture.push(None);
         (self.materials.len() - 1) as u32
+    }
+
+    /// Adds the material a mesh file describes, mapped by `mapping`, with its colour texture
+    /// (MTL `map_Kd`, read once per file) when it maps to a Lambertian surface: the texture
+    /// replaces `Kd`, as Blender's and most OBJ importers do. A texture that cannot be read is
+    /// an error naming the material and the file.
+    pub fn add_source_material(
+        &mut self,
+        name: &str,
+        source: &crate::load::SourceMaterial,
+        mapping: materials::MtlMapping,
+    ) -> Result<u32, crate::error::LoadError> {
+        let material = materials::map_source_material(source, mapping);
+        let texture = match (source, &material) {
+            (crate::load::SourceMaterial::Mtl(m), Material::Lambertian { .. }) => m.map_kd.as_deref(),
+            _ => None,
+        };
+        let texture = texture
+            .map(|file| {
+                self.texture(file).map_err(|e| {
+                    crate::error::LoadError::new(file, format!("texture of material \"{name}\": {}", e.message))
+                })
+            })
+            .transpose()?;
+        let index = self.add_material(name, material);
+        self.material_texture[index as usize] = texture;
+        Ok(index)
+    }
+
+    /// The texture read from `file` (once: later calls share it).
+    pub fn texture(&mut self, file: &std::path::Path) -> Result<u32, crate::error::LoadError> {
+        if let Some(i) = self.texture_files.iter().position(|f| f == file) {
+            return Ok(i as u32);
+        }
+        self.textures.push(Texture::load(file)?);
+        self.texture_files.push(file.to_path_buf());
+        Ok((self.textures.len() - 1) as u32)
     }
 
     pub fn material_index(&self, name: &str) -> Option<u32> {
@@ -262,14 +313,12 @@ pub fn load_scene(path: &std::path::Path) -> Result<Scene, crate::error::LoadErr
         background: Background::Gradient { bottom: Vec3::ONE, top: Vec3::new(0.5, 0.7, 1.0) },
         ..Scene::default()
     };
-    let group_material: Vec<u32> = data
+    let group_material = data
         .groups
         .iter()
         .zip(&data.group_materials)
-        .map(|(name, m)| {
-            scene.add_material(name.clone(), materials::map_source_material(m, materials::MtlMapping::Full))
-        })
-        .collect();
+        .map(|(name, m)| scene.add_source_material(name, m, materials::MtlMapping::Full))
+        .collect::<Result<Vec<u32>, _>>()?;
     for c in &data.cameras {
         scene.views.push((c.name.clone(), c.into()));
     }
@@ -280,6 +329,7 @@ pub fn load_scene(path: &std::path::Path) -> Result<Scene, crate::error::LoadErr
         positions: data.positions,
         triangles: data.triangles,
         triangle_material,
+        uvs: data.uvs.iter().map(|t| t.map(Vec2::from)).collect(),
     });
     let auto = scene.framing_camera();
     scene.views.insert(0, ("auto".into(), auto));

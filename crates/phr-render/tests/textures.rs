@@ -1,0 +1,96 @@
+//! Textured OBJ files end to end: `vt` coordinates and an MTL `map_Kd` PNG become the albedo
+//! of a Lambertian quad. Lit by a constant white sky with nothing else around, every path that
+//! hits the quad leaves to the sky after one bounce, so a pixel's radiance is exactly the
+//! texture's linear colour where its ray hits: the image shows the texture, texel for texel,
+//! whatever the noise. Also: a missing texture file is an error naming it and its material,
+//! and two materials naming one file share one texture.
+
+use glam::Vec3;
+use phr_bvh::Builder;
+use phr_render::geometry::Geometry;
+use phr_render::render::Renderer;
+use phr_render::scene::load_scene;
+use std::path::{Path, PathBuf};
+
+/// A fresh folder under the target directory.
+fn folder(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("textures-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// 2 × 2 texels, top row red and green, bottom row blue and mid grey (sRGB 128).
+const TEXELS: [[u8; 3]; 4] = [[255, 0, 0], [0, 255, 0], [0, 0, 255], [128, 128, 128]];
+
+/// A unit quad in the z = 0 plane facing +z with `vt` corners (0,0)…(1,1), its MTL naming
+/// `texture` for material `a` (and for `b`, used by a second quad, when `twice`), and a
+/// scene file that looks at it head-on under a white sky.
+fn write_scene(dir: &Path, texture: &str, twice: bool) -> PathBuf {
+    let image = image::RgbImage::from_fn(2, 2, |x, y| image::Rgb(TEXELS[(y * 2 + x) as usize]));
+    image.save(dir.join("checker.png")).unwrap();
+    let mut obj = String::from("mtllib quad.mtl\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n");
+    obj += "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl a\nf 1/1 2/2 3/3 4/4\n";
+    let mut mtl = format!("newmtl a\nKd 0.5 0.5 0.5\nmap_Kd {texture}\n");
+    if twice {
+        obj += "v -1 -1 -5\nv 1 -1 -5\nv 1 1 -5\nusemtl b\nf 5/1 6/2 7/3\n";
+        mtl += &format!("newmtl b\nKd 0.5 0.5 0.5\nmap_Kd -s 1 1 1 {texture}\n");
+    }
+    std::fs::write(dir.join("quad.obj"), obj).unwrap();
+    std::fs::write(dir.join("quad.mtl"), mtl).unwrap();
+    let scene = r#"{
+      "width": 64, "height": 64, "spp": 1, "max_depth": 4, "background": [1, 1, 1],
+      "camera": { "position": [0, 0, 2], "look_at": [0, 0, 0], "vfov": 40 },
+      "objects": [ { "type": "obj_mtl", "file": "quad.obj" } ]
+    }"#;
+    std::fs::write(dir.join("scene.json"), scene).unwrap();
+    dir.join("scene.json")
+}
+
+fn srgb_to_linear(c: u8) -> f32 {
+    let c = c as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+#[test]
+fn a_textured_quad_shows_its_texels() {
+    let dir = folder("quad");
+    let scene = load_scene(&write_scene(&dir, "checker.png", false)).unwrap();
+    assert_eq!(scene.textures.len(), 1);
+    let mut geometry = Geometry::new(&scene);
+    geometry.build(&Builder::default());
+    for lights in [false, true] {
+        let light_set =
+            lights.then(|| phr_render::lights::LightSet::new(&geometry, &scene.materials, &scene.background));
+        let renderer =
+            Renderer::new(&scene, &geometry, &scene.view(None).unwrap(), &scene.settings, light_set.as_ref());
+        let (image, _) = renderer.render_frame(0);
+        // The quad fills the view (which spans ±2 tan 20° = ±0.728 at its distance): its
+        // texel centres, at ±0.5, fall at pixels 32 ± 0.5 / 0.728 · 32 = 32 ± 22.
+        for (k, texel) in TEXELS.iter().enumerate() {
+            let (x, y) = (32 + if k % 2 == 0 { -22 } else { 22 }, 32 + if k < 2 { -22 } else { 22 });
+            let pixel = image[(y * 64 + x) as usize];
+            let expected = Vec3::from(texel.map(srgb_to_linear));
+            // Up to the pixel's jitter across the bilinear blend: a texel is 44 pixels wide.
+            assert!(
+                (pixel - expected).abs().max_element() < 0.08,
+                "light sampling {lights}: texel {k} at pixel ({x}, {y}): {pixel}, expected {expected}"
+            );
+        }
+    }
+}
+
+#[test]
+fn one_file_is_one_texture_and_a_missing_one_is_named() {
+    let dir = folder("shared");
+    let scene = load_scene(&write_scene(&dir, "checker.png", true)).unwrap();
+    assert_eq!(scene.textures.len(), 1, "two materials, one file");
+    assert_eq!(scene.material_texture.iter().flatten().count(), 2);
+    let dir = folder("missing");
+    let error = load_scene(&write_scene(&dir, "no_such.png", false)).unwrap_err().to_string();
+    assert!(error.contains("no_such.png") && error.contains("material \"a\""), "{error}");
+}
