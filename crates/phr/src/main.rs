@@ -56,7 +56,20 @@ enum Command {
     View(view::ViewArgs),
 }
 
+/// Output into a closed pipe (`phr render … | head -1`) ends the process quietly, as it does
+/// for other command-line tools, instead of panicking in `println!`: Rust ignores SIGPIPE,
+/// this restores the default.
+fn default_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: called first thing in main, before any thread starts; setting a signal's
+    // disposition to its default has no other precondition.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
+    default_sigpipe();
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global() {

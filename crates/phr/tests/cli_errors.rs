@@ -407,3 +407,23 @@ fn tune_runs_grid_and_bayes() {
     }
     assert!(cache.is_file(), "the Bayesian run caches its normalisation maxima");
 }
+
+/// Output into a closed pipe (`phr render … | head -1` once `head` has exited) ends `phr`
+/// quietly, like other command-line tools: no panic message on stderr.
+#[test]
+fn a_closed_stdout_is_no_panic() {
+    use std::process::{Command, Stdio};
+    let dir = TempDir::new("closed-stdout");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_phr"))
+        .current_dir(&dir.0)
+        .args(["render", "builtin", "--spp", "1", "--width", "8", "--height", "8", "--quiet", "--out", "x.png"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("runs phr");
+    // Close the reading end before phr prints its summary.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("phr ends");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
