@@ -2,7 +2,9 @@
 //! comparison tool (`compare_images.py --check`), which we did not write: the four of
 //! `shared/reference`, and `tests/references/lights_mixed` (rendered with the same tool,
 //! `render_reference.py --variant llvm_ad_rgb --integrator rtiow --passes 64`), where a
-//! triangle light meets an emissive sphere, the sky and a glass sphere.
+//! triangle light meets an emissive sphere, the sky and a glass sphere, and
+//! `tests/references/textured` (made by `make_textured.py` with Mitsuba's own `bitmap`
+//! texture), where OBJ texture coordinates and an MTL `map_Kd` image colour three walls.
 //!
 //! Every reference is checked with both estimators, which must converge to the same image.
 //! Renders with the thesis's estimator are judged with `--test-spp` (the reference's own noise
@@ -160,11 +162,18 @@ fn lights_mixed_matches_reference() {
     check_both(own_reference("lights_mixed"));
 }
 
+/// OBJ `vt` and MTL `map_Kd` against Mitsuba 3's `bitmap` texture on the same coordinates
+/// (`tests/references/make_textured.py` made the scene, the texture and the reference).
+#[test]
+fn textured_matches_reference() {
+    check_both(own_reference("textured"));
+}
+
 #[test]
 #[ignore = "slow: 1024 spp per scene (run with --ignored)"]
 fn all_references_at_1024_spp() {
     let all = ["cornell_obj", "cornell_glass_mirror", "spheres_sky", "bunny_sky"].map(shared_reference);
-    for reference in all.into_iter().chain([own_reference("lights_mixed")]) {
+    for reference in all.into_iter().chain([own_reference("lights_mixed"), own_reference("textured")]) {
         for estimator in [Estimator::Implicit, Estimator::Lights] {
             check_with(&reference, 1024, estimator);
         }
