@@ -93,13 +93,13 @@ impl PathTracer<'_> {
         PathSample { radiance, rays }
     }
 
-    /// A Lambertian hit's scattering weight (its albedo, `weight`) with its material's
-    /// texture, if it has one, in place of the albedo.
+    /// A Lambertian hit's scattering weight (its albedo, `weight`) times its material's
+    /// texture at the hit, if it has one.
     #[inline]
     fn textured(&self, weight: Vec3, surface: &SurfacePoint, hit: &Hit) -> Vec3 {
         match self.material_texture.get(surface.material as usize) {
             Some(Some(t)) if matches!(self.materials[surface.material as usize], Material::Lambertian { .. }) => {
-                self.textures[*t as usize].sample(self.geometry.uv(hit))
+                weight * self.textures[*t as usize].sample(self.geometry.uv(hit))
             }
             _ => weight,
         }

@@ -7,6 +7,7 @@
 //! convention: `v = 0` is the image's bottom row.
 
 use crate::error::LoadError;
+use crate::load::ImageSource;
 use glam::{Vec2, Vec3};
 use std::path::Path;
 use std::sync::OnceLock;
@@ -41,10 +42,21 @@ impl Texture {
         Texture { width, height, texels }
     }
 
-    /// Reads an image file (PNG, JPEG, ...), naming the file in any error.
-    pub fn load(path: &Path) -> Result<Texture, LoadError> {
-        let image = image::ImageReader::open(path)
-            .map_err(|e| LoadError::new(path, format!("cannot open texture: {e}")))?
+    /// Reads an image (PNG or JPEG, from a file or from bytes inside an asset), naming it in
+    /// any error.
+    pub fn load(source: &ImageSource) -> Result<Texture, LoadError> {
+        let path = Path::new(match source {
+            ImageSource::File(path) => path.as_os_str(),
+            ImageSource::Embedded { name, .. } => std::ffi::OsStr::new(name),
+        });
+        let reader = match source {
+            ImageSource::File(file) => {
+                let bytes = crate::load::input::read_file(file, "the texture")?;
+                image::ImageReader::new(std::io::Cursor::new(bytes))
+            }
+            ImageSource::Embedded { bytes, .. } => image::ImageReader::new(std::io::Cursor::new(bytes.to_vec())),
+        };
+        let image = reader
             .with_guessed_format()
             .map_err(|e| LoadError::new(path, format!("cannot read texture: {e}")))?
             .decode()

@@ -1,5 +1,6 @@
-//! Textured OBJ files end to end: `vt` coordinates and an MTL `map_Kd` PNG become the albedo
-//! of a Lambertian quad. Lit by a constant white sky with nothing else around, every path that
+//! Textured OBJ and glTF files end to end: `vt` coordinates and an MTL `map_Kd` PNG, or
+//! `TEXCOORD_0` and a `baseColorTexture` (times its base colour), become the albedo of a
+//! Lambertian quad. Lit by a constant white sky with nothing else around, every path that
 //! hits the quad leaves to the sky after one bounce, so a pixel's radiance is exactly the
 //! texture's linear colour where its ray hits: the image shows the texture, texel for texel,
 //! whatever the noise. Also: a missing texture file is an error naming it and its material,
@@ -56,10 +57,10 @@ fn srgb_to_linear(c: u8) -> f32 {
     }
 }
 
-#[test]
-fn a_textured_quad_shows_its_texels() {
-    let dir = folder("quad");
-    let scene = load_scene(&write_scene(&dir, "checker.png", false)).unwrap();
+/// Renders `scene_file` (a quad filling the view, textured with [`TEXELS`]) and checks the
+/// pixels at the texel centres against the texels' linear colours times `tint`.
+fn check_texels(scene_file: &Path, tint: f32) {
+    let scene = load_scene(scene_file).unwrap();
     assert_eq!(scene.textures.len(), 1);
     let mut geometry = Geometry::new(&scene);
     geometry.build(&Builder::default());
@@ -74,14 +75,69 @@ fn a_textured_quad_shows_its_texels() {
         for (k, texel) in TEXELS.iter().enumerate() {
             let (x, y) = (32 + if k % 2 == 0 { -22 } else { 22 }, 32 + if k < 2 { -22 } else { 22 });
             let pixel = image[(y * 64 + x) as usize];
-            let expected = Vec3::from(texel.map(srgb_to_linear));
+            let expected = tint * Vec3::from(texel.map(srgb_to_linear));
             // Up to the pixel's jitter across the bilinear blend: a texel is 44 pixels wide.
             assert!(
                 (pixel - expected).abs().max_element() < 0.08,
-                "light sampling {lights}: texel {k} at pixel ({x}, {y}): {pixel}, expected {expected}"
+                "{}, light sampling {lights}: texel {k} at pixel ({x}, {y}): {pixel}, expected {expected}",
+                scene_file.display()
             );
         }
     }
+}
+
+#[test]
+fn a_textured_obj_quad_shows_its_texels() {
+    let dir = folder("quad");
+    check_texels(&write_scene(&dir, "checker.png", false), 1.0);
+}
+
+/// The same quad as glTF: `TEXCOORD_0` (v down the image) and a `baseColorTexture` file,
+/// times a base colour of 0.5.
+#[test]
+fn a_textured_gltf_quad_shows_its_texels_times_the_base_colour() {
+    let dir = folder("gltf");
+    write_scene(&dir, "checker.png", false);
+    let mut buffer = Vec::new();
+    let floats = [-1.0f32, -1.0, 0.0, 1.0, -1.0, 0.0, 1.0, 1.0, 0.0, -1.0, 1.0, 0.0];
+    let uvs = [0.0f32, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0];
+    for v in floats.iter().chain(&uvs) {
+        buffer.extend_from_slice(&v.to_le_bytes());
+    }
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        buffer.extend_from_slice(&i.to_le_bytes());
+    }
+    let uri = format!("data:application/octet-stream;base64,{}", base64::encode(&buffer));
+    let gltf = format!(
+        r#"{{
+  "asset": {{"version": "2.0"}},
+  "scenes": [{{"nodes": [0]}}],
+  "nodes": [{{"mesh": 0}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}}, "indices": 2, "material": 0}}]}}],
+  "materials": [{{"name": "checker", "pbrMetallicRoughness": {{"baseColorFactor": [0.5, 0.5, 0.5, 1], "metallicFactor": 0,
+    "baseColorTexture": {{"index": 0}}}}}}],
+  "textures": [{{"source": 0}}],
+  "images": [{{"uri": "checker.png"}}],
+  "buffers": [{{"byteLength": {len}, "uri": "{uri}"}}],
+  "bufferViews": [
+    {{"buffer": 0, "byteOffset": 0, "byteLength": 48}},
+    {{"buffer": 0, "byteOffset": 48, "byteLength": 32}},
+    {{"buffer": 0, "byteOffset": 80, "byteLength": 12}}
+  ],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-1, -1, 0], "max": [1, 1, 0]}},
+    {{"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"}},
+    {{"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}}
+  ]
+}}"#,
+        len = buffer.len()
+    );
+    std::fs::write(dir.join("quad.gltf"), gltf).unwrap();
+    let scene = std::fs::read_to_string(dir.join("scene.json")).unwrap();
+    let scene =
+        scene.replace(r#"{ "type": "obj_mtl", "file": "quad.obj" }"#, r#"{ "type": "gltf", "file": "quad.gltf" }"#);
+    std::fs::write(dir.join("gltf.json"), scene).unwrap();
+    check_texels(&dir.join("gltf.json"), 0.5);
 }
 
 #[test]

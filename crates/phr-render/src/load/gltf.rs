@@ -9,10 +9,15 @@
 //! are read into a [`NodeAnimation`] that poses the vertices of the nodes they move; all of
 //! a file's animations play together.
 //!
+//! Textures: `TEXCOORD_0` and each material's `baseColorTexture` (an image file inside the
+//! asset's folder, a GLB buffer view or a `data:` URI); glTF's `v` runs down the image, so it
+//! is stored as `1 − v` ([`MeshData::uvs`] follows OBJ: `v = 0` is the image's bottom).
+//!
 //! Limits: other primitive modes (points, lines, strips, fans) and orthographic cameras are
-//! skipped; sparse accessors, morph targets and skins are not supported; textures are not read.
+//! skipped; sparse accessors, morph targets and skins are not supported; texture transforms,
+//! samplers' wrap modes other than repeat, and other texture coordinate sets are ignored.
 
-use super::{check_finite, finish, GltfMaterial, Location, MeshData, SourceCamera, SourceMaterial};
+use super::{check_finite, finish, GltfMaterial, ImageSource, Location, MeshData, SourceCamera, SourceMaterial};
 use crate::error::LoadError;
 use crate::motion::{AnimatedNode, AnimatedPart, Interpolation, NodeAnimation, Track};
 use ::gltf::accessor::{DataType, Dimensions};
@@ -77,6 +82,7 @@ pub(super) fn parse(path: &Path, base_dir: &Path, bytes: &[u8]) -> Result<MeshDa
     let animated = document.animations().next().is_some();
     let mut builder = Builder {
         path,
+        base_dir,
         buffers: &buffers,
         mesh: MeshData::default(),
         groups: HashMap::new(),
@@ -217,6 +223,8 @@ fn check_animation_targets(json: &::gltf::json::Root) -> Result<(), String> {
 /// Collects the triangles and cameras of a scene.
 struct Builder<'a> {
     path: &'a Path,
+    /// Where image files are looked up.
+    base_dir: &'a Path,
     buffers: &'a [&'a [u8]],
     mesh: MeshData,
     /// Group index by glTF material index (`None`: no material).
@@ -278,10 +286,50 @@ impl Builder<'_> {
             Some(indices) => indices.into_u32().collect(),
             None => (0..count as u32).collect(),
         };
+        let first_triangle = self.mesh.triangles.len();
         self.triangles(&indices, base, count, context)?;
-        let group = self.group(primitive.material());
+        self.texture_coordinates(primitive, &indices, first_triangle, count, context)?;
+        let group = self.group(primitive.material())?;
         let triangles = self.mesh.triangles.len();
         self.mesh.triangle_group.resize(triangles, group);
+        Ok(())
+    }
+
+    /// The corners' `TEXCOORD_0` of the triangles from `first_triangle` on (made of `indices`
+    /// into the primitive's `count` vertices), as `(u, 1 − v)`; zeros without them. Meshes
+    /// read before the first primitive with texture coordinates get zeros too.
+    fn texture_coordinates(
+        &mut self,
+        primitive: &Primitive,
+        indices: &[u32],
+        first_triangle: usize,
+        count: usize,
+        context: &str,
+    ) -> Result<(), LoadError> {
+        let accessor = primitive.get(&::gltf::Semantic::TexCoords(0));
+        if accessor.is_none() && self.mesh.uvs.is_empty() {
+            return Ok(());
+        }
+        self.mesh.uvs.resize(first_triangle, [[0.0; 2]; 3]);
+        let Some(accessor) = accessor else {
+            self.mesh.uvs.resize(self.mesh.triangles.len(), [[0.0; 2]; 3]);
+            return Ok(());
+        };
+        self.check_accessor(&accessor, context, &[DataType::F32, DataType::U8, DataType::U16], Dimensions::Vec2)?;
+        if accessor.count() != count {
+            return Err(self.error(format!("{context}: {} texture coordinates for {count} vertices", accessor.count())));
+        }
+        let buffers = self.buffers;
+        let reader = primitive.reader(|buffer| buffers.get(buffer.index()).copied());
+        let uv: Vec<[f32; 2]> = match reader.read_tex_coords(0) {
+            Some(coords) => coords.into_f32().map(|[u, v]| [u, 1.0 - v]).collect(),
+            None => return Err(self.error(format!("{context}: cannot read texture coordinates"))),
+        };
+        if let Some(bad) = uv.iter().flatten().find(|x| !x.is_finite()) {
+            return Err(self.error(format!("{context}: texture coordinate {bad} is not finite")));
+        }
+        let corners = indices.chunks_exact(3).map(|c| [uv[c[0] as usize], uv[c[1] as usize], uv[c[2] as usize]]);
+        self.mesh.uvs.extend(corners);
         Ok(())
     }
 
@@ -416,7 +464,7 @@ impl Builder<'_> {
     }
 
     /// The group of a material, created at first use.
-    fn group(&mut self, material: ::gltf::Material) -> u32 {
+    fn group(&mut self, material: ::gltf::Material) -> Result<u32, LoadError> {
         let next = self.mesh.groups.len() as u32;
         let group = *self.groups.entry(material.index()).or_insert(next);
         if group == next {
@@ -424,13 +472,48 @@ impl Builder<'_> {
                 None => ("default".to_owned(), SourceMaterial::None),
                 Some(i) => {
                     let name = material.name().map_or_else(|| format!("material_{i}"), str::to_owned);
-                    (name, SourceMaterial::Gltf(convert_material(&material)))
+                    let mut converted = convert_material(&material);
+                    converted.base_color_texture = self.base_color_image(&material, &name)?;
+                    (name, SourceMaterial::Gltf(converted))
                 }
             };
             self.mesh.groups.push(name);
             self.mesh.group_materials.push(source);
         }
-        group
+        Ok(group)
+    }
+
+    /// Where a material's `baseColorTexture` image is (`None` without one, or for a texture
+    /// coordinate set other than 0).
+    fn base_color_image(&self, material: &::gltf::Material, name: &str) -> Result<Option<ImageSource>, LoadError> {
+        use ::gltf::image::Source;
+        let Some(info) = material.pbr_metallic_roughness().base_color_texture() else { return Ok(None) };
+        if info.tex_coord() != 0 {
+            return Ok(None);
+        }
+        let image = info.texture().source();
+        let index = image.index();
+        let fail = |message: String| self.error(format!("material `{name}`, image {index}: {message}"));
+        let embedded = |bytes: Vec<u8>| ImageSource::Embedded {
+            name: format!("{}#image {index}", self.path.display()),
+            bytes: std::sync::Arc::new(bytes),
+        };
+        Ok(Some(match image.source() {
+            Source::View { view, .. } => {
+                let buffer = self.buffers.get(view.buffer().index()).copied().unwrap_or(&[]);
+                let bytes = view.offset().checked_add(view.length()).and_then(|end| buffer.get(view.offset()..end));
+                embedded(bytes.ok_or_else(|| fail("its buffer view lies outside its buffer".into()))?.to_vec())
+            }
+            Source::Uri { uri, .. } if uri.starts_with("data:") => {
+                let data = ::gltf::buffer::Data::from_source(::gltf::buffer::Source::Uri(uri), None)
+                    .map_err(|e| fail(format!("invalid data URI: {e}")))?;
+                embedded(data.0)
+            }
+            Source::Uri { uri, .. } => {
+                let relative = confined_path(uri).map_err(|e| fail(format!("`{uri}` {e}")))?;
+                ImageSource::File(self.base_dir.join(relative))
+            }
+        }))
     }
 
     fn camera(&mut self, camera: &::gltf::Camera, world: Mat4) -> Result<(), LoadError> {
@@ -461,6 +544,7 @@ fn convert_material(material: &::gltf::Material) -> GltfMaterial {
     let strength = material.emissive_strength().unwrap_or(1.0);
     GltfMaterial {
         base_color: [r, g, b],
+        base_color_texture: None,
         metallic: pbr.metallic_factor(),
         roughness: pbr.roughness_factor(),
         emissive: material.emissive_factor().map(|e| e * strength),

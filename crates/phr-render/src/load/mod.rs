@@ -24,10 +24,32 @@ pub struct MtlEntry {
     pub map_kd: Option<std::path::PathBuf>,
 }
 
+/// Where a texture's image is.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ImageSource {
+    /// A file: an MTL `map_Kd`, a glTF image URI (inside the asset's folder).
+    File(std::path::PathBuf),
+    /// Bytes inside the asset (a GLB buffer view, a `data:` URI), with a name that identifies
+    /// them in messages and for sharing (`asset.glb#image 3`).
+    Embedded { name: String, bytes: std::sync::Arc<Vec<u8>> },
+}
+
+impl ImageSource {
+    /// The file, or the embedded image's name.
+    pub fn name(&self) -> String {
+        match self {
+            ImageSource::File(path) => path.display().to_string(),
+            ImageSource::Embedded { name, .. } => name.clone(),
+        }
+    }
+}
+
 /// A material as glTF describes it (metallic-roughness, emissive, transmission).
 #[derive(Clone, Debug, PartialEq)]
 pub struct GltfMaterial {
     pub base_color: [f32; 3],
+    /// `baseColorTexture` (texture coordinate set 0), which the base colour multiplies.
+    pub base_color_texture: Option<ImageSource>,
     pub metallic: f32,
     pub roughness: f32,
     /// Emissive factor times `KHR_materials_emissive_strength`.

@@ -106,6 +106,7 @@ mod tests {
     fn gltf_rules() {
         let base = GltfMaterial {
             base_color: [0.2, 0.3, 0.4],
+            base_color_texture: None,
             metallic: 0.0,
             roughness: 0.5,
             emissive: [0.0; 3],

@@ -130,10 +130,10 @@ pub struct Scene {
     pub animations: Vec<ObjectAnimation>,
     /// Colour textures, each loaded once however many materials use it.
     pub textures: Vec<Texture>,
-    /// The file each texture came from (to share them).
-    pub texture_files: Vec<std::path::PathBuf>,
-    /// For each material, its colour texture: a Lambertian surface's albedo is the texture's
-    /// colour at the hit's texture coordinates instead of its `albedo`.
+    /// The image each texture came from ([`crate::load::ImageSource::name`], to share them).
+    pub texture_files: Vec<String>,
+    /// For each material, its colour texture: a Lambertian surface's albedo is its `albedo`
+    /// times the texture's colour at the hit's texture coordinates.
     pub material_texture: Vec<Option<u32>>,
 }
 
@@ -165,24 +165,31 @@ impl Scene {
     }
 
     /// Adds the material a mesh file describes, mapped by `mapping`, with its colour texture
-    /// (MTL `map_Kd`, read once per file) when it maps to a Lambertian surface: the texture
-    /// replaces `Kd`, as Blender's and most OBJ importers do. A texture that cannot be read is
-    /// an error naming the material and the file.
+    /// when it maps to a Lambertian surface: an MTL `map_Kd` replaces `Kd` (as Blender's and
+    /// most OBJ importers do), a glTF `baseColorTexture` is multiplied by the base colour (as
+    /// the specification says). Each image is read once per scene. A texture that cannot be
+    /// read is an error naming the material and the image.
     pub fn add_source_material(
         &mut self,
         name: &str,
         source: &crate::load::SourceMaterial,
         mapping: materials::MtlMapping,
     ) -> Result<u32, crate::error::LoadError> {
-        let material = materials::map_source_material(source, mapping);
-        let texture = match (source, &material) {
-            (crate::load::SourceMaterial::Mtl(m), Material::Lambertian { .. }) => m.map_kd.as_deref(),
+        use crate::load::{ImageSource, SourceMaterial};
+        let mut material = materials::map_source_material(source, mapping);
+        let image = match (source, &mut material) {
+            (SourceMaterial::Mtl(m), Material::Lambertian { albedo }) => m.map_kd.as_ref().map(|file| {
+                *albedo = Vec3::ONE;
+                ImageSource::File(file.clone())
+            }),
+            (SourceMaterial::Gltf(g), Material::Lambertian { .. }) => g.base_color_texture.clone(),
             _ => None,
         };
-        let texture = texture
-            .map(|file| {
-                self.texture(file).map_err(|e| {
-                    crate::error::LoadError::new(file, format!("texture of material \"{name}\": {}", e.message))
+        let texture = image
+            .map(|image| {
+                self.texture(&image).map_err(|e| {
+                    let message = format!("texture of material \"{name}\": {}", e.message);
+                    crate::error::LoadError::new(image.name(), message)
                 })
             })
             .transpose()?;
@@ -191,13 +198,14 @@ impl Scene {
         Ok(index)
     }
 
-    /// The texture read from `file` (once: later calls share it).
-    pub fn texture(&mut self, file: &std::path::Path) -> Result<u32, crate::error::LoadError> {
-        if let Some(i) = self.texture_files.iter().position(|f| f == file) {
+    /// The texture of `image` (read once: later calls share it).
+    pub fn texture(&mut self, image: &crate::load::ImageSource) -> Result<u32, crate::error::LoadError> {
+        let name = image.name();
+        if let Some(i) = self.texture_files.iter().position(|f| *f == name) {
             return Ok(i as u32);
         }
-        self.textures.push(Texture::load(file)?);
-        self.texture_files.push(file.to_path_buf());
+        self.textures.push(Texture::load(image)?);
+        self.texture_files.push(name);
         Ok((self.textures.len() - 1) as u32)
     }
 
