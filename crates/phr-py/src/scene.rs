@@ -5,6 +5,7 @@
 use crate::pool::Pool;
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use phr_bvh::Builder;
+use phr_render::denoise::{Atrous, Guide, GUIDE_SAMPLES};
 use phr_render::film::Film;
 use phr_render::geometry::Geometry;
 use phr_render::lights::LightSet;
@@ -106,9 +107,11 @@ impl Scene {
 
     /// Path traces a view: `spp` frames of one sample per pixel, accumulated, as
     /// `phr render` (same arguments, same defaults: the file's settings, builder `sbvh`,
-    /// seed 0, integrator `path`: light sampling with MIS; `implicit`: the thesis's). Returns the linear mean radiance, float32 of shape (height, width, 3), top row
+    /// seed 0, integrator `path`: light sampling with MIS; `implicit`: the thesis's). The array
+    /// is the raw mean, as `phr render --linear` writes it, unless `denoiser="atrous"`: then it
+    /// is what `phr render --out` writes. Returns the linear mean radiance, float32 of shape (height, width, 3), top row
     /// first.
-    #[pyo3(signature = (width = None, height = None, spp = None, view = None, seed = 0, max_depth = None, builder = "sbvh", integrator = "path", threads = None))]
+    #[pyo3(signature = (width = None, height = None, spp = None, view = None, seed = 0, max_depth = None, builder = "sbvh", integrator = "path", denoiser = "none", threads = None))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
         &self,
@@ -121,6 +124,7 @@ impl Scene {
         max_depth: Option<u32>,
         builder: &str,
         integrator: &str,
+        denoiser: &str,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, numpy::PyArray3<f32>>> {
         let s = self.scene.settings;
@@ -145,6 +149,11 @@ impl Scene {
             "implicit" => false,
             other => return Err(PyValueError::new_err(format!("integrator {other:?}: use \"path\" or \"implicit\""))),
         };
+        let denoise = match denoiser {
+            "none" => false,
+            "atrous" => true,
+            other => return Err(PyValueError::new_err(format!("denoiser {other:?}: use \"none\" or \"atrous\""))),
+        };
         let pool = Pool::new(threads)?;
         let pixels = py.detach(|| {
             pool.install(|| {
@@ -163,7 +172,12 @@ impl Scene {
                 for frame in 0..settings.spp {
                     film.add_frame(&renderer.render_frame(frame).0);
                 }
-                film.mean().iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>()
+                let mut image = film.mean();
+                if denoise {
+                    let guide = Guide::render(&renderer, settings.spp.min(GUIDE_SAMPLES));
+                    image = Atrous::default().denoise(&image, &film.variance_of_mean(), &guide);
+                }
+                image.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>()
             })
         })?;
         let (w, h) = (settings.width as usize, settings.height as usize);

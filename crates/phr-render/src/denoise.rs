@@ -24,6 +24,10 @@ use glam::Vec3;
 use rayon::prelude::*;
 use std::f32::consts::SQRT_2;
 
+/// Jittered first hits per pixel for the guide of a finished render (`phr render`, Python),
+/// or its spp if lower: enough to anti-alias the albedo as the colour is.
+pub const GUIDE_SAMPLES: u32 = 16;
+
 /// The first surface each pixel sees: what the filter is guided by.
 #[derive(Clone, Debug)]
 pub struct Guide {

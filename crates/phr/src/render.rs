@@ -6,7 +6,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::builder::BuildReport;
 use phr_bvh::{sah_cost, Builder, SahConstants};
-use phr_render::denoise::{Atrous, Guide};
+use phr_render::denoise::{Atrous, Guide, GUIDE_SAMPLES};
 use phr_render::film::Film;
 use phr_render::geometry::Geometry;
 use phr_render::lights::LightSet;
@@ -183,8 +183,8 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     progress.finish_and_clear();
 
     let mean = film.mean();
-    let guide =
-        (args.denoiser != Denoiser::None || args.albedo.is_some()).then(|| Guide::render(&renderer, spp.min(16)));
+    let guide = (args.denoiser != Denoiser::None || args.albedo.is_some())
+        .then(|| Guide::render(&renderer, spp.min(GUIDE_SAMPLES)));
     let image = match (&guide, args.denoiser) {
         (Some(guide), Denoiser::Atrous) => {
             let start = Instant::now();

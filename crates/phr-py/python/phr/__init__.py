@@ -19,6 +19,6 @@ __all__ = ["BUILDERS", "Bvh", "Scene", "__version__", "render", "tune"]
 
 def render(scene, **options):
     """Opens ``scene`` and renders it once: ``Scene(scene).render(**options)`` (width, height,
-    spp, view, seed, max_depth, builder, integrator, threads), the linear mean as float32 of shape
+    spp, view, seed, max_depth, builder, integrator, denoiser, threads), the linear mean as float32 of shape
     (height, width, 3)."""
     return Scene(scene).render(**options)

@@ -84,12 +84,14 @@ class Scene:
         max_depth: Optional[int] = None,
         builder: str = "sbvh",
         integrator: str = "path",
+        denoiser: str = "none",
         threads: Optional[int] = None,
     ) -> npt.NDArray[np.float32]:
         """Path traces as ``phr render`` does; the linear mean, shape (height, width, 3).
 
         ``integrator``: ``"path"`` samples the lights with MIS (the default),
-        ``"implicit"`` is the thesis's estimator."""
+        ``"implicit"`` is the thesis's estimator. The raw mean (``phr render --linear``)
+        unless ``denoiser="atrous"`` (``phr render --out``)."""
 
 def render(scene: str, **options: Any) -> npt.NDArray[np.float32]:
     """``Scene(scene).render(**options)``."""

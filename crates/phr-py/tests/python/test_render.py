@@ -24,13 +24,16 @@ def read_pfm(path):
         ("builtin", dict(width=48, height=32, spp=3, seed=7)),
         ("builtin", dict(width=40, height=40, spp=2, view="close", builder="phr-fast", max_depth=3)),
         ("builtin", dict(width=24, height=24, spp=2, integrator="implicit")),
+        ("builtin", dict(width=24, height=24, spp=3, denoiser="atrous")),
         ("SHARED/reference/scenes/cornell_obj.json", dict(width=32, height=32, spp=2)),
     ],
 )
 def test_render_equals_the_command_line(tmp_path, phr_bin, shared, scene, options):
+    """The array is `phr render --linear`'s raw mean, or `--out`'s denoised image with
+    denoiser="atrous"."""
     scene = scene.replace("SHARED", str(shared))
-    out = tmp_path / "cli.pfm"
-    args = [str(phr_bin), "render", scene, "--quiet", "--out", str(out)]
+    out, raw = tmp_path / "cli.pfm", tmp_path / "raw.pfm"
+    args = [str(phr_bin), "render", scene, "--quiet", "--out", str(out), "--linear", str(raw)]
     for key, value in options.items():
         flag = "--" + key.replace("_", "-")
         args += [flag] if value is True else [flag, str(value)]
@@ -38,7 +41,8 @@ def test_render_equals_the_command_line(tmp_path, phr_bin, shared, scene, option
     image = phr.render(scene, **options)
     assert image.dtype == np.float32 and image.shape == (options["height"], options["width"], 3)
     assert image.mean() > 0.01
-    np.testing.assert_array_equal(image, read_pfm(out))
+    expected = read_pfm(out if options.get("denoiser") == "atrous" else raw)
+    np.testing.assert_array_equal(image, expected)
 
 
 def test_a_scene_renders_several_views_the_same_for_any_thread_count():
@@ -70,6 +74,8 @@ def test_bad_scenes_and_settings_raise_with_the_message(tmp_path):
         scene.render(width=0, height=8, spp=1)
     with pytest.raises(ValueError, match="spp"):
         scene.render(width=8, height=8, spp=0)
+    with pytest.raises(ValueError, match="denoiser"):
+        scene.render(width=8, height=8, spp=1, denoiser="oidn")
     with pytest.raises(ValueError, match="integrator"):
         scene.render(width=8, height=8, spp=1, integrator="bdpt")
     with pytest.raises(ValueError, match="unknown builder"):
