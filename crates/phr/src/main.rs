@@ -58,13 +58,19 @@ enum Command {
 
 /// Output into a closed pipe (`phr render … | head -1`) ends the process quietly, as it does
 /// for other command-line tools, instead of panicking in `println!`: Rust ignores SIGPIPE,
-/// this restores the default.
+/// this restores the default action, and unblocks the signal in case the parent blocked it
+/// (a blocked SIGPIPE would leave the write failing with EPIPE all the same).
 fn default_sigpipe() {
     #[cfg(unix)]
-    // SAFETY: called first thing in main, before any thread starts; setting a signal's
-    // disposition to its default has no other precondition.
+    // SAFETY: called first thing in main, before any thread starts; the signal set is
+    // initialised by sigemptyset before use, and setting SIGPIPE's disposition to its
+    // default and unblocking it have no other precondition.
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+        let mut set: libc::sigset_t = std::mem::zeroed();
+        libc::sigemptyset(&mut set);
+        libc::sigaddset(&mut set, libc::SIGPIPE);
+        libc::pthread_sigmask(libc::SIG_UNBLOCK, &set, std::ptr::null_mut());
     }
 }
 
