@@ -6,8 +6,8 @@
 //! be checked against them with `compare_images.py --test-spp N`.
 //!
 //! With a [`LightSet`] (`lights: Some`) it becomes the path tracer of pbrt and Mitsuba's
-//! `path` integrator: at every diffuse hit one light (an emissive triangle or sphere, or the
-//! sky) is sampled through a shadow ray, and the light a path's own bounce reaches is weighed
+//! `path` integrator: at every diffuse or fuzzy-metal hit one light (an emissive triangle or
+//! sphere, or the sky) is sampled through a shadow ray, and the light a path's own bounce reaches is weighed
 //! against it by multiple importance sampling (the power heuristic), so neither small lights
 //! nor large ones are noisy; after [`RR_START`] segments Russian roulette ends paths whose
 //! throughput has become small. The expected image is the same (the reference checks run
@@ -21,7 +21,6 @@ use crate::scene::Background;
 use crate::texture::Texture;
 use glam::Vec3;
 use phr_bvh::Ray;
-use std::f32::consts::FRAC_1_PI;
 
 /// Russian roulette starts after this many segments (the camera ray is the first).
 pub const RR_START: u32 = 3;
@@ -48,7 +47,8 @@ pub struct PathSample {
     pub rays: u32,
 }
 
-/// A diffuse vertex whose lights were sampled: what the next segment's MIS weight needs.
+/// A vertex whose lights were sampled (diffuse, fuzzy metal): what the next segment's MIS
+/// weight needs.
 #[derive(Clone, Copy)]
 struct LitVertex {
     position: Vec3,
@@ -111,7 +111,8 @@ impl PathTracer<'_> {
         self.textured(self.materials[surface.material as usize].albedo(), surface, hit)
     }
 
-    /// Light sampling at diffuse hits, MIS with BSDF sampling, Russian roulette.
+    /// Light sampling at diffuse and fuzzy-metal hits, MIS with BSDF sampling, Russian
+    /// roulette.
     fn trace_with_lights(&self, mut ray: Ray, lights: &LightSet, rng: &mut Pcg32) -> PathSample {
         let mut radiance = Vec3::ZERO;
         let mut throughput = Vec3::ONE;
@@ -143,14 +144,17 @@ impl PathTracer<'_> {
                 break;
             }
             let facing = if surface.front { surface.normal } else { -surface.normal };
-            let diffuse = match material {
+            // The scatter weight of a material with a lobe (diffuse, textured; fuzzy metal):
+            // light samples are weighed against it.
+            let lobe = match material {
                 Material::Lambertian { albedo } => Some(self.textured(*albedo, &surface, &hit)),
+                Material::Metal { albedo, .. } if material.has_lobe() => Some(*albedo),
                 _ => None,
             };
-            if let Some(albedo) = diffuse {
+            if let Some(albedo) = lobe {
                 if let Some(light) = lights.sample(self.geometry, surface.position, facing, rng) {
-                    let cos = facing.dot(light.dir);
-                    if cos > 0.0 && light.radiance != Vec3::ZERO {
+                    let lobe_pdf = material.lobe_pdf(ray.dir, surface.normal, surface.front, light.dir);
+                    if lobe_pdf > 0.0 && light.radiance != Vec3::ZERO {
                         rays += 1;
                         let origin = surface.spawn_origin(light.dir);
                         // To the light's point, stopping short of it by a relative margin well
@@ -160,10 +164,9 @@ impl PathTracer<'_> {
                             None => Ray::new(origin, light.dir),
                         };
                         if !self.geometry.occluded(&shadow) {
-                            let bsdf_pdf = cos * FRAC_1_PI;
-                            let weight = power_heuristic(light.pdf, bsdf_pdf);
-                            // BRDF albedo / π, the cosine, over the light's density.
-                            radiance += throughput * albedo * light.radiance * (bsdf_pdf * weight / light.pdf);
+                            let weight = power_heuristic(light.pdf, lobe_pdf);
+                            // BSDF × cosine = scatter weight × lobe density, over the light's.
+                            radiance += throughput * albedo * light.radiance * (lobe_pdf * weight / light.pdf);
                         }
                     }
                 }
@@ -171,9 +174,9 @@ impl PathTracer<'_> {
             match material.scatter(ray.dir, surface.normal, surface.front, rng) {
                 Interaction::Absorb => break,
                 Interaction::Scatter { dir, weight } => {
-                    throughput *= diffuse.unwrap_or(weight);
-                    lit = diffuse.map(|_| {
-                        let pdf = facing.dot(dir.normalize()).max(0.0) * FRAC_1_PI;
+                    throughput *= lobe.unwrap_or(weight);
+                    lit = lobe.map(|_| {
+                        let pdf = material.lobe_pdf(ray.dir, surface.normal, surface.front, dir.normalize());
                         LitVertex { position: surface.position, facing, pdf }
                     });
                     ray = Ray::new(surface.spawn_origin(dir), dir);
