@@ -18,6 +18,7 @@
 //! surfaces.
 //! The [`Guide`] buffers come from the camera's first hits.
 
+use crate::geometry::{Hit, SurfacePoint};
 use crate::render::Renderer;
 use crate::sampler::Pcg32;
 use glam::Vec3;
@@ -57,31 +58,33 @@ impl Guide {
             .map(|i| {
                 let (x, y) = ((i % w) as f32, (i / w) as f32);
                 let mut rng = Pcg32::for_pixel(renderer.seed ^ 0x6a09_e667, 0, i);
-                let mut albedo = Vec3::ZERO;
+                // The centre's hit guides the filter; it and jittered ones average the albedo.
+                let centre = camera.ray(x + 0.5, y + 0.5);
+                let centre_surface =
+                    geometry.intersect(&centre).map(|hit| (geometry.surface_point(&centre, &hit), hit));
                 let mut sees_light = false;
-                for k in 0..samples.max(1) {
-                    let (jx, jy) = if k == 0 { (0.5, 0.5) } else { (rng.next_f32(), rng.next_f32()) };
-                    let ray = camera.ray(x + jx, y + jy);
-                    albedo += match geometry.intersect(&ray) {
-                        Some(hit) => {
-                            let surface = geometry.surface_point(&ray, &hit);
-                            sees_light |= tracer.materials[surface.material as usize].is_emissive();
-                            tracer.albedo_at(&surface, &hit)
-                        }
-                        None => Vec3::ONE,
-                    };
+                let mut albedo_of = |first: Option<&(SurfacePoint, Hit)>| match first {
+                    Some((surface, hit)) => {
+                        sees_light |= tracer.materials[surface.material as usize].is_emissive();
+                        tracer.albedo_at(surface, hit)
+                    }
+                    None => Vec3::ONE,
+                };
+                let mut albedo = albedo_of(centre_surface.as_ref());
+                for _ in 1..samples.max(1) {
+                    let ray = camera.ray(x + rng.next_f32(), y + rng.next_f32());
+                    let first = geometry.intersect(&ray).map(|hit| (geometry.surface_point(&ray, &hit), hit));
+                    albedo += albedo_of(first.as_ref());
                 }
                 let albedo = albedo / samples.max(1) as f32;
-                let ray = camera.ray(x + 0.5, y + 0.5);
-                match geometry.intersect(&ray) {
+                match centre_surface {
                     // A light's pixels, its edges included, are exact but for their coverage
                     // noise, and far brighter than what surrounds them: never filtered.
                     _ if sees_light => (albedo, Vec3::ZERO, Vec3::ZERO, 0.0),
-                    Some(hit) => {
-                        let surface = geometry.surface_point(&ray, &hit);
+                    Some((surface, _)) => {
                         let normal = if surface.front { surface.normal } else { -surface.normal };
                         let beside = camera.ray(x + 1.5, y + 0.5).dir;
-                        let footprint = (surface.position - ray.origin).length() * (beside - ray.dir).length();
+                        let footprint = (surface.position - centre.origin).length() * (beside - centre.dir).length();
                         (albedo, normal, surface.position, footprint)
                     }
                     None => (albedo, Vec3::ZERO, Vec3::ZERO, 0.0),
@@ -99,8 +102,8 @@ impl Guide {
     }
 }
 
-/// The filter's settings; the defaults are SVGF's (σl = 4, and the normal exponent 128) and one footprint for
-/// the plane distance.
+/// The filter's settings; the defaults are SVGF's (σl = 4, and the normal exponent 128) and
+/// one footprint for the plane distance.
 #[derive(Clone, Copy, Debug)]
 pub struct Atrous {
     /// Passes (`2^passes − 1` pixels reach, times 2, on each side).

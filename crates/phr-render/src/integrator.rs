@@ -7,11 +7,11 @@
 //!
 //! With a [`LightSet`] (`lights: Some`) it becomes the path tracer of pbrt and Mitsuba's
 //! `path` integrator: at every diffuse or fuzzy-metal hit one light (an emissive triangle or
-//! sphere, or the sky) is sampled through a shadow ray, and the light a path's own bounce reaches is weighed
-//! against it by multiple importance sampling (the power heuristic), so neither small lights
-//! nor large ones are noisy; after [`RR_START`] segments Russian roulette ends paths whose
-//! throughput has become small. The expected image is the same (the reference checks run
-//! with both).
+//! sphere, or the sky) is sampled through a shadow ray, and the light a path's own bounce
+//! reaches is weighed against it by multiple importance sampling (the power heuristic), so
+//! neither small lights nor large ones are noisy; after [`RR_START`] segments Russian
+//! roulette ends paths whose throughput has become small. The expected image is the same
+//! (the reference checks run with both).
 
 use crate::geometry::{Geometry, Hit, SurfacePoint};
 use crate::lights::{power_heuristic, LightSet};

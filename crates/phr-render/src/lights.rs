@@ -49,22 +49,11 @@ pub struct LightSet {
     sky_probability: f32,
 }
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct Emitter {
     area: f32,
-    emit: Vec3,
-    two_sided: bool,
-}
-
-impl Emitter {
-    /// Radiance towards a ray that arrives on the `front` side.
-    fn radiance(&self, front: bool) -> Vec3 {
-        if front || self.two_sided {
-            self.emit
-        } else {
-            Vec3::ZERO
-        }
-    }
+    /// Its material ([`Material::emitted`] says what it sends to each side).
+    material: Material,
 }
 
 /// A direction towards a light, chosen from a shading point.
@@ -84,14 +73,6 @@ pub struct LightSample {
 
 /// [`LightSample::prim`] of a sky sample.
 pub const SKY: u32 = u32::MAX;
-
-/// Emission and sidedness of a material (zero if it does not emit).
-fn emission(material: &Material) -> (Vec3, bool) {
-    match material {
-        Material::Emissive { emit, two_sided } => (*emit, *two_sided),
-        _ => (Vec3::ZERO, false),
-    }
-}
 
 /// The cone a sphere subtends from `from`: `1 − cos θmax`, computed without cancellation
 /// for far spheres; `None` from inside the sphere or on it.
@@ -119,7 +100,7 @@ impl LightSet {
     /// The emitters of `geometry` with `materials`, and `background` if it is not black.
     pub fn new(geometry: &Geometry, materials: &[Material], background: &Background) -> Self {
         let n_tris = geometry.triangles.len();
-        let emits = |m: u32| emission(&materials[m as usize]).0.max_element() > 0.0;
+        let emits = |m: u32| materials[m as usize].emitted(true).max_element() > 0.0;
         let triangles = (0..n_tris).filter(|&i| emits(geometry.triangle_material[i]));
         let spheres = (0..geometry.spheres.len()).filter(|&i| emits(geometry.spheres[i].material));
         let prims = triangles.chain(spheres.map(|i| n_tris + i)).map(|p| p as u32).collect();
@@ -145,11 +126,11 @@ impl LightSet {
                 let r = geometry.world_sphere(p - n_tris).radius;
                 (2.0 * TAU * r * r, geometry.spheres[p - n_tris].material)
             };
-            let (emit, two_sided) = emission(&materials[material as usize]);
-            let power = area * emit.max_element();
+            let material = materials[material as usize].clone();
+            let power = area * material.emitted(true).max_element();
             // Degenerate lights get no weight (and so are never picked).
             total += if power.is_finite() && area > 0.0 { power.max(0.0) } else { 0.0 };
-            self.emitters.push(Emitter { area, emit, two_sided });
+            self.emitters.push(Emitter { area, material });
             self.cdf.push(total);
         }
         if !(total > 0.0 && total.is_finite()) {
@@ -222,7 +203,7 @@ impl LightSet {
             let dir = to_light / dist2.sqrt();
             let cos_light = -triangle_normal(a, b, c).normalize().dot(dir);
             let pdf = selection / emitter.area * dist2 / cos_light.abs();
-            LightSample { dir, point: Some(point), radiance: emitter.radiance(cos_light > 0.0), pdf, prim }
+            LightSample { dir, point: Some(point), radiance: emitter.material.emitted(cos_light > 0.0), pdf, prim }
         } else {
             let sphere = geometry.world_sphere(prim as usize - n_tris);
             let one_minus_cos_max = cone(&sphere, position)?;
@@ -242,7 +223,7 @@ impl LightSet {
             let point = position + dir * t;
             let front = dir.dot(sphere.normal(point)) < 0.0;
             let pdf = selection / (TAU * one_minus_cos_max);
-            LightSample { dir, point: Some(point), radiance: emitter.radiance(front), pdf, prim }
+            LightSample { dir, point: Some(point), radiance: emitter.material.emitted(front), pdf, prim }
         };
         (sample.pdf > 0.0 && sample.pdf.is_finite() && sample.dir.is_finite()).then_some(sample)
     }

@@ -621,7 +621,7 @@ impl FramePipeline {
             let s = &self.settings;
             let size = RenderSettings { width: s.width, height: s.height, spp: 1, max_depth: s.max_depth.max(1) };
             let renderer = Renderer::new(&self.scene, &self.geometry, &self.camera, &size, None).with_seed(self.seed);
-            self.guide = Some(Guide::render(&renderer, GUIDE_SAMPLES));
+            self.guide = Some(Guide::render(&renderer, VIEWER_GUIDE_SAMPLES));
         }
         let guide = self.guide.as_ref().expect("traced above");
         self.denoised = Some(Atrous::default().denoise(&self.film.mean(), &self.film.variance_of_mean(), guide));
@@ -668,7 +668,7 @@ fn posed_geometry(scene: &Scene, animator: &mut Animator, pipeline: PipelineKind
 
 /// Jittered first hits per pixel for the viewer's denoising guide (the albedo's
 /// anti-aliasing; a few keep the guide cheap when the film restarts every frame).
-const GUIDE_SAMPLES: u32 = 4;
+const VIEWER_GUIDE_SAMPLES: u32 = 4;
 
 fn ms_since(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3

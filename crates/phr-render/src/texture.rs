@@ -9,7 +9,6 @@
 use crate::error::LoadError;
 use crate::load::ImageSource;
 use glam::{Vec2, Vec3};
-use std::path::Path;
 use std::sync::OnceLock;
 
 #[derive(Clone, Debug)]
@@ -45,26 +44,24 @@ impl Texture {
     /// Reads an image (PNG or JPEG, from a file or from bytes inside an asset), naming it in
     /// any error.
     pub fn load(source: &ImageSource) -> Result<Texture, LoadError> {
-        let path = Path::new(match source {
-            ImageSource::File(path) => path.as_os_str(),
-            ImageSource::Embedded { name, .. } => std::ffi::OsStr::new(name),
-        });
-        let reader = match source {
+        let name = source.name();
+        let read;
+        let bytes: &[u8] = match source {
             ImageSource::File(file) => {
-                let bytes = crate::load::input::read_file(file, "the texture")?;
-                image::ImageReader::new(std::io::Cursor::new(bytes))
+                read = crate::load::input::read_file(file, "the texture")?;
+                &read
             }
-            ImageSource::Embedded { bytes, .. } => image::ImageReader::new(std::io::Cursor::new(bytes.to_vec())),
+            ImageSource::Embedded { bytes, .. } => bytes,
         };
-        let image = reader
+        let image = image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
-            .map_err(|e| LoadError::new(path, format!("cannot read texture: {e}")))?
+            .map_err(|e| LoadError::new(&name, format!("cannot read texture: {e}")))?
             .decode()
-            .map_err(|e| LoadError::new(path, format!("cannot decode texture: {e}")))?
+            .map_err(|e| LoadError::new(&name, format!("cannot decode texture: {e}")))?
             .into_rgb8();
         let (width, height) = image.dimensions();
         if width == 0 || height == 0 {
-            return Err(LoadError::new(path, "texture has no pixels"));
+            return Err(LoadError::new(&name, "texture has no pixels"));
         }
         let texels = image.pixels().map(|p| p.0).collect();
         Ok(Texture { width, height, texels })

@@ -179,22 +179,21 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         progress.set_message(format!("{:.1} Mrays/s", rays as f64 / render_start.elapsed().as_secs_f64() / 1e6));
     }
     let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
-    let mut denoise_ms = None;
     progress.finish_and_clear();
 
     let mean = film.mean();
     let guide = (args.denoiser != Denoiser::None || args.albedo.is_some())
         .then(|| Guide::render(&renderer, spp.min(GUIDE_SAMPLES)));
-    let image = match (&guide, args.denoiser) {
+    let denoised = match (&guide, args.denoiser) {
         (Some(guide), Denoiser::Atrous) => {
             let start = Instant::now();
             let image = Atrous::default().denoise(&mean, &film.variance_of_mean(), guide);
-            denoise_ms = Some(start.elapsed().as_secs_f64() * 1e3);
-            image
+            Some((image, start.elapsed().as_secs_f64() * 1e3))
         }
-        _ => mean.clone(),
+        _ => None,
     };
-    write_image(&args.out, width, height, &image).with_context(|| format!("writing {}", args.out.display()))?;
+    let image = denoised.as_ref().map_or(&mean, |(image, _)| image);
+    write_image(&args.out, width, height, image).with_context(|| format!("writing {}", args.out.display()))?;
     if let (Some(p), Some(guide)) = (&args.albedo, &guide) {
         write_image(p, width, height, &guide.albedo).with_context(|| format!("writing {}", p.display()))?;
         let normal_path = with_suffix(p, "_normal");
@@ -224,7 +223,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         rays as f64 / (render_ms / 1e3) / 1e6,
         sah
     );
-    if let Some(ms) = denoise_ms {
+    if let Some((_, ms)) = denoised {
         println!("denoised (à-trous, {} passes) in {ms:.0} ms", Atrous::default().passes);
     }
     println!("wrote {}", args.out.display());
