@@ -68,9 +68,43 @@ impl Camera {
     }
 }
 
+impl Camera {
+    /// Where `point` appears in the image: continuous pixel coordinates as [`Camera::ray`]
+    /// takes them (`None` behind the camera). The inverse of `ray`.
+    pub fn project(&self, point: Vec3) -> Option<(f32, f32)> {
+        let d = point - self.origin;
+        let depth = d.dot(self.forward);
+        // Also NaN.
+        if depth.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+        // d / depth = forward + sx·horizontal − sy·vertical, the three orthogonal.
+        let sx = d.dot(self.horizontal) / (depth * self.horizontal.length_squared());
+        let sy = -d.dot(self.vertical) / (depth * self.vertical.length_squared());
+        Some(((sx + 1.0) * 0.5 / self.inv_width, (sy + 1.0) * 0.5 / self.inv_height))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn project_inverts_ray() {
+        let desc = CameraDesc {
+            position: Vec3::new(1.0, 2.0, 3.0),
+            look_at: Vec3::new(-2.0, 0.5, -1.0),
+            up: Vec3::new(0.1, 1.0, 0.0),
+            vfov_degrees: 55.0,
+        };
+        let cam = Camera::new(&desc, 320, 200);
+        for (x, y) in [(0.0, 0.0), (160.0, 100.0), (319.5, 12.25), (-30.0, 250.0)] {
+            let ray = cam.ray(x, y);
+            let (px, py) = cam.project(ray.origin + 7.0 * ray.dir).expect("in front");
+            assert!((px - x).abs() < 1e-3 && (py - y).abs() < 1e-3, "({x}, {y}) came back as ({px}, {py})");
+        }
+        assert_eq!(cam.project(desc.position - (desc.look_at - desc.position)), None, "behind");
+    }
 
     #[test]
     fn orientation_matches_the_reference_convention() {

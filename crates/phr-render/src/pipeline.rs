@@ -20,8 +20,9 @@
 //! the viewer's statistics panel and the headless CSV show.
 
 use crate::animation::Animator;
+use crate::camera::Camera;
 use crate::camera::CameraDesc;
-use crate::denoise::{Atrous, Guide};
+use crate::denoise::{Atrous, Guide, Temporal};
 use crate::film::Film;
 use crate::geometry::Geometry;
 use crate::lights::LightSet;
@@ -112,8 +113,10 @@ pub struct PipelineSettings {
     /// Sample the lights at diffuse hits with MIS (see [`crate::lights`]) instead of relying
     /// on paths hitting them.
     pub explicit_lights: bool,
-    /// Show the accumulated image denoised ([`crate::denoise`]) once it has 2, 4, 8, …
-    /// samples (then every 64), in colour mode.
+    /// Show the image denoised ([`crate::denoise`]), in colour mode: each frame through
+    /// [`Temporal`] (SVGF) while the view moves and for its first still frames, then the
+    /// accumulated image through [`Atrous`] at [`ACCUMULATED_DENOISE_FROM`] samples and
+    /// each power of two after (then every 64).
     pub denoise: bool,
 }
 
@@ -138,8 +141,8 @@ pub struct FrameReport {
     /// directly, the packing alone ([`Geometry::set_part_wide`]).
     pub wide_ms: f64,
     pub render_ms: f64,
-    /// Denoising the accumulated image (and tracing its guide after a restart), on the
-    /// frames that do.
+    /// Denoising: this frame through the temporal filter (and tracing its guide), or the
+    /// accumulated image (and its guide, after a restart) on the frames that do.
     pub denoise_ms: f64,
     /// Everything above.
     pub frame_ms: f64,
@@ -222,6 +225,9 @@ pub struct FramePipeline {
     /// restart) and the last denoised image.
     guide: Option<Guide>,
     denoised: Option<Vec<Vec3>>,
+    /// The frame-by-frame denoiser and its history (kept across camera moves: it follows
+    /// the surfaces).
+    temporal: Temporal,
     samples: u32,
     frame: u64,
     seed: u64,
@@ -267,6 +273,7 @@ impl FramePipeline {
             film,
             guide: None,
             denoised: None,
+            temporal: Temporal::default(),
             samples: 0,
             frame: 0,
             seed: 0,
@@ -334,6 +341,7 @@ impl FramePipeline {
             self.film = Film::new(settings.width.max(1), settings.height.max(1));
         }
         self.settings = settings;
+        self.temporal.reset();
         self.restart();
     }
 
@@ -382,14 +390,15 @@ impl FramePipeline {
         self.film.add_frame(&pixels);
         self.samples += 1;
         let s = self.samples;
-        if self.settings.denoise
-            && self.settings.mode == ViewMode::Colour
-            && s >= 2
-            && (s.is_power_of_two() || s.is_multiple_of(64))
-        {
+        if self.settings.denoise && self.settings.mode == ViewMode::Colour {
             let denoise_start = Instant::now();
-            self.denoise();
-            report.denoise_ms = ms_since(denoise_start);
+            if s < ACCUMULATED_DENOISE_FROM {
+                self.denoise_frame(&pixels);
+                report.denoise_ms = ms_since(denoise_start);
+            } else if s.is_power_of_two() || s.is_multiple_of(64) {
+                self.denoise();
+                report.denoise_ms = ms_since(denoise_start);
+            }
         }
         report.frame_ms = ms_since(start);
         self.frame += 1;
@@ -615,13 +624,25 @@ impl FramePipeline {
         (pixels, stats.rays)
     }
 
+    /// The first hits of the current view, `samples` jittered ones per pixel.
+    fn trace_guide(&self, samples: u32) -> Guide {
+        let s = &self.settings;
+        let size = RenderSettings { width: s.width, height: s.height, spp: 1, max_depth: s.max_depth.max(1) };
+        let renderer = Renderer::new(&self.scene, &self.geometry, &self.camera, &size, None).with_seed(self.seed);
+        Guide::render(&renderer, samples)
+    }
+
+    /// Denoises this frame's samples `pixels` through the temporal filter.
+    fn denoise_frame(&mut self, pixels: &[Vec3]) {
+        let guide = self.trace_guide(1);
+        let camera = Camera::new(&self.camera, self.settings.width, self.settings.height);
+        self.denoised = Some(self.temporal.denoise(pixels, &guide, &camera));
+    }
+
     /// Denoises the film as it is now, tracing the guide first if the film restarted.
     fn denoise(&mut self) {
         if self.guide.is_none() {
-            let s = &self.settings;
-            let size = RenderSettings { width: s.width, height: s.height, spp: 1, max_depth: s.max_depth.max(1) };
-            let renderer = Renderer::new(&self.scene, &self.geometry, &self.camera, &size, None).with_seed(self.seed);
-            self.guide = Some(Guide::render(&renderer, VIEWER_GUIDE_SAMPLES));
+            self.guide = Some(self.trace_guide(VIEWER_GUIDE_SAMPLES));
         }
         let guide = self.guide.as_ref().expect("traced above");
         self.denoised = Some(Atrous::default().denoise(&self.film.mean(), &self.film.variance_of_mean(), guide));
@@ -634,6 +655,11 @@ impl FramePipeline {
             Some(image) if self.settings.denoise => image.clone(),
             _ => self.film.mean(),
         }
+    }
+
+    /// The film's mean, never denoised.
+    pub fn raw_image(&self) -> Vec<Vec3> {
+        self.film.mean()
     }
 
     /// [`FramePipeline::image`] as 8-bit sRGB RGBA, for display.
@@ -666,9 +692,13 @@ fn posed_geometry(scene: &Scene, animator: &mut Animator, pipeline: PipelineKind
     geometry
 }
 
-/// Jittered first hits per pixel for the viewer's denoising guide (the albedo's
-/// anti-aliasing; a few keep the guide cheap when the film restarts every frame).
+/// Jittered first hits per pixel for the viewer's guide of the accumulated image (the
+/// albedo's anti-aliasing).
 const VIEWER_GUIDE_SAMPLES: u32 = 4;
+
+/// Below this many samples in the film, the viewer shows the temporal filter's image; from
+/// it on, the accumulated image's (whose variance is then known well enough).
+pub const ACCUMULATED_DENOISE_FROM: u32 = 16;
 
 fn ms_since(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3

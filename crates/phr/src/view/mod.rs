@@ -70,8 +70,10 @@ pub struct ViewArgs {
     /// default); `implicit` only counts lights that paths happen to hit, the thesis's estimator.
     #[arg(long, value_enum, default_value = "explicit")]
     light_sampling: LightSampling,
-    /// `atrous`: while the view is still, the accumulated image is shown denoised once it
-    /// has 2, 4, 8, … samples (then every 64); `none`: the raw mean.
+    /// `atrous`: every frame is shown denoised: while the view or the scene moves (and for
+    /// the first 15 still frames) each frame's samples through SVGF's temporal filter, whose
+    /// history follows the surfaces; from 16 samples on, the accumulated image at each power
+    /// of two (then every 64); `none`: the raw mean.
     #[arg(long, value_enum, default_value = "atrous")]
     denoiser: Denoiser,
 }

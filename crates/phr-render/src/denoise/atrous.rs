@@ -1,0 +1,504 @@
+//! The edge-avoiding à-trous wavelet filter (Dammertz, Sewtz, Hanika & Lensch 2010), with the
+//! variance-guided luminance weight of SVGF (Schied et al. 2017).
+//!
+//! Each pass is a 5×5 B3-spline kernel whose taps lie `2^i` pixels apart (pass `i`), so five
+//! passes cover 61×61 pixels at 25 taps per pixel each. A tap's weight is cut down where it
+//! leaves the surface of the centre pixel:
+//! - **normals** that differ: `max(0, n_p · n_q)^σn`;
+//! - **positions** off the centre's tangent plane, measured in pixel footprints at the
+//!   centre's distance (the plane distance of a neighbour on the same flat surface is 0, a
+//!   step in depth is many footprints);
+//! - **illumination** that differs by more than its noise: `|l_p − l_q| / (σl · σ(l_p))`, with
+//!   σ(l_p) the standard deviation of the pixel's estimate (carried through the passes as a
+//!   filtered variance shrinks, and smoothed over 3×3 before each pass, as in SVGF).
+//!
+//! The buffers are planes of `f32` (structure of arrays) and a pass runs tap by tap over a
+//! whole row, so the compiler vectorises the weights 8 pixels at a time; `exp` is a
+//! polynomial ([`exp_neg`]) for the same reason.
+
+use super::Guide;
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// The filter's settings; the defaults are SVGF's (σl = 4, and the normal exponent 128) and
+/// one footprint for the plane distance.
+#[derive(Clone, Copy, Debug)]
+pub struct Atrous {
+    /// Passes (`2^passes − 1` pixels reach, times 2, on each side).
+    pub passes: u32,
+    pub sigma_luminance: f32,
+    pub sigma_plane: f32,
+}
+
+impl Default for Atrous {
+    fn default() -> Self {
+        Self { passes: 5, sigma_luminance: 4.0, sigma_plane: 1.0 }
+    }
+}
+
+/// The normal weight is `max(0, n_p · n_q)^(2^NORMAL_POWER)`: SVGF's exponent 128, by squaring.
+const NORMAL_POWER: u32 = 7;
+
+/// The B3-spline kernel's weights at offsets −2..=2.
+const KERNEL: [f32; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
+
+/// Beyond `e^-MAX_EXPONENT` a tap counts for nothing.
+const MAX_EXPONENT: f32 = 20.0;
+
+pub(crate) fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// `e^-x` for `x` in `[0, MAX_EXPONENT]` within 10⁻⁵ relative: `2^y` with `y = −x·log2(e)`, from
+/// the exponent bits of `y`'s nearest integer and a degree-5 Taylor polynomial for the rest
+/// (in [−½, ½)). Plain arithmetic, so a row of taps vectorises (the library `exp` is a call
+/// per lane).
+#[inline(always)]
+pub(crate) fn exp_neg(x: f32) -> f32 {
+    // Adding and taking away 1.5·2^23 rounds to the nearest integer with plain SSE2 (`floor`
+    // is a library call below SSE4.1).
+    const ROUND: f32 = 12_582_912.0;
+    let y = (-x * std::f32::consts::LOG2_E).max(-126.0);
+    let whole = (y + ROUND) - ROUND;
+    let f = (y - whole) * std::f32::consts::LN_2;
+    let p = 1.0 + f * (1.0 + f * (0.5 + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0)))));
+    // `y + ROUND` holds the integer in its low mantissa bits: no float-to-int conversion
+    // (whose saturation checks are scalar).
+    let n = (y + ROUND).to_bits().wrapping_sub(ROUND.to_bits());
+    f32::from_bits(n.wrapping_add(127) << 23) * p
+}
+
+/// Per-pixel planes of a frame's first surfaces: what every pass reads unchanged.
+pub(crate) struct GuidePlanes {
+    pub width: usize,
+    pub height: usize,
+    normal: [Vec<f32>; 3],
+    position: [Vec<f32>; 3],
+    /// 0: not a surface to filter ([`Guide::footprint`]).
+    footprint: Vec<f32>,
+}
+
+impl GuidePlanes {
+    pub fn new(guide: &Guide) -> Self {
+        let plane = |v: &[Vec3], c: usize| v.iter().map(|p| p[c]).collect::<Vec<f32>>();
+        Self {
+            width: guide.width as usize,
+            height: guide.height as usize,
+            normal: [plane(&guide.normal, 0), plane(&guide.normal, 1), plane(&guide.normal, 2)],
+            position: [plane(&guide.position, 0), plane(&guide.position, 1), plane(&guide.position, 2)],
+            footprint: guide.footprint.clone(),
+        }
+    }
+}
+
+/// What a pass filters: the illumination (three planes) and the variance of its luminance.
+#[derive(Clone)]
+pub(crate) struct Signal {
+    pub colour: [Vec<f32>; 3],
+    pub var: Vec<f32>,
+}
+
+impl Signal {
+    pub fn new(illumination: &[Vec3], var: Vec<f32>) -> Self {
+        let plane = |c: usize| illumination.iter().map(|p| p[c]).collect::<Vec<f32>>();
+        Self { colour: [plane(0), plane(1), plane(2)], var }
+    }
+
+    pub fn get(&self, i: usize) -> Vec3 {
+        Vec3::new(self.colour[0][i], self.colour[1][i], self.colour[2][i])
+    }
+
+    fn luminance(&self) -> Vec<f32> {
+        let [r, g, b] = &self.colour;
+        r.iter().zip(g).zip(b).map(|((r, g), b)| luminance(Vec3::new(*r, *g, *b))).collect()
+    }
+}
+
+/// What [`Atrous::row`] reads: the guide, the signal, its luminance and blurred variance, the
+/// row and the step.
+type RowArgs<'a> = (&'a GuidePlanes, &'a Signal, &'a [f32], &'a [f32], usize, usize);
+
+/// Row `y`'s accumulators of a tap loop.
+struct RowSums {
+    colour: [Vec<f32>; 3],
+    var: Vec<f32>,
+    weight: Vec<f32>,
+}
+
+impl Atrous {
+    /// Runs the passes over `signal`; `after_first(&signal)` sees the result of the first pass
+    /// (SVGF keeps it as the temporal history).
+    pub(crate) fn filter(
+        &self,
+        guide: &GuidePlanes,
+        mut signal: Signal,
+        mut after_first: impl FnMut(&Signal),
+    ) -> Signal {
+        for pass in 0..self.passes {
+            signal = self.pass(guide, &signal, 1 << pass);
+            if pass == 0 {
+                after_first(&signal);
+            }
+        }
+        signal
+    }
+
+    /// One pass with taps `step` pixels apart.
+    fn pass(&self, guide: &GuidePlanes, signal: &Signal, step: usize) -> Signal {
+        let (w, h) = (guide.width, guide.height);
+        let lum = signal.luminance();
+        let blurred = blurred_variance(guide, &signal.var);
+        let wide = Self::has_avx2_fma();
+        let rows: Vec<RowSums> = (0..h)
+            .into_par_iter()
+            .map(|y| {
+                let args = (guide, signal, &lum[..], &blurred[..], y, step);
+                if wide {
+                    // SAFETY: the CPU has AVX2 and FMA (checked above).
+                    unsafe { self.row_avx2(args) }
+                } else {
+                    self.row(args)
+                }
+            })
+            .collect();
+        let mut out = Signal { colour: [vec![0.0; w * h], vec![0.0; w * h], vec![0.0; w * h]], var: vec![0.0; w * h] };
+        for (y, sums) in rows.into_iter().enumerate() {
+            for x in 0..w {
+                let i = y * w + x;
+                if guide.footprint[i] > 0.0 {
+                    let total = sums.weight[x];
+                    for c in 0..3 {
+                        out.colour[c][i] = sums.colour[c][x] / total;
+                    }
+                    out.var[i] = sums.var[x] / (total * total);
+                } else {
+                    for c in 0..3 {
+                        out.colour[c][i] = signal.colour[c][i];
+                    }
+                    out.var[i] = signal.var[i];
+                }
+            }
+        }
+        out
+    }
+
+    fn has_avx2_fma() -> bool {
+        #[cfg(target_arch = "x86_64")]
+        {
+            is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            false
+        }
+    }
+
+    /// [`Atrous::row`] compiled for AVX2 and FMA (8 taps at a time).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn row_avx2(&self, args: RowArgs) -> RowSums {
+        self.row(args)
+    }
+
+    #[cfg(not(target_arch = "x86_64"))]
+    unsafe fn row_avx2(&self, args: RowArgs) -> RowSums {
+        self.row(args)
+    }
+
+    /// The sums of row `y`'s 25 taps, each over the whole row.
+    #[inline(always)]
+    fn row(&self, (guide, signal, lum, blurred, y, step): RowArgs) -> RowSums {
+        let (w, h) = (guide.width, guide.height);
+        let row = y * w..(y + 1) * w;
+        // Per centre pixel: 1 / (σl σ(l)), and 1 / (σp footprint step) (0 off surfaces,
+        // whose result is not used).
+        let luminance_scale: Vec<f32> =
+            blurred[row.clone()].iter().map(|v| 1.0 / (self.sigma_luminance * v.sqrt() + 1e-6)).collect();
+        let plane_scale: Vec<f32> = guide.footprint[row.clone()]
+            .iter()
+            .map(|f| if *f > 0.0 { 1.0 / (self.sigma_plane * f * step as f32) } else { 0.0 })
+            .collect();
+        let mut sums =
+            RowSums { colour: [vec![0.0; w], vec![0.0; w], vec![0.0; w]], var: vec![0.0; w], weight: vec![0.0; w] };
+        for (dy, ky) in (-2..=2isize).zip(KERNEL) {
+            let qy = y as isize + dy * step as isize;
+            if !(0..h as isize).contains(&qy) {
+                continue;
+            }
+            for (dx, kx) in (-2..=2isize).zip(KERNEL) {
+                let offset = dx * step as isize;
+                let tap = Tap { kernel: kx * ky, inv_distance: 1.0 / ((dx * dx + dy * dy) as f32).sqrt().max(1.0) };
+                // Centre pixels x whose tap x + offset lies in the image.
+                let lo = (-offset).clamp(0, w as isize) as usize;
+                let hi = (w as isize - offset.max(0)).max(0) as usize;
+                if lo >= hi {
+                    // Steps wider than the image.
+                    continue;
+                }
+                let q0 = (qy as usize * w) as isize + offset;
+                let q = (q0 + lo as isize) as usize..(q0 + hi as isize) as usize;
+                let p = y * w + lo..y * w + hi;
+                tap.accumulate(
+                    guide,
+                    signal,
+                    lum,
+                    (p, q),
+                    (&luminance_scale[lo..hi], &plane_scale[lo..hi]),
+                    &mut sums,
+                    lo..hi,
+                );
+            }
+        }
+        sums
+    }
+}
+
+/// One of the 25 taps of a pass.
+struct Tap {
+    kernel: f32,
+    /// 1 / the tap's offset length in steps (the plane distance is per step of offset).
+    inv_distance: f32,
+}
+
+impl Tap {
+    /// Adds this tap's contribution to centre pixels `p` (row positions `row`) from pixels
+    /// `q` (same length).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn accumulate(
+        &self,
+        guide: &GuidePlanes,
+        signal: &Signal,
+        lum: &[f32],
+        (p, q): (std::ops::Range<usize>, std::ops::Range<usize>),
+        (luminance_scale, plane_scale): (&[f32], &[f32]),
+        sums: &mut RowSums,
+        row: std::ops::Range<usize>,
+    ) {
+        let n = row.len();
+        let [pnx, pny, pnz] = [&guide.normal[0][p.clone()], &guide.normal[1][p.clone()], &guide.normal[2][p.clone()]];
+        let [qnx, qny, qnz] = [&guide.normal[0][q.clone()], &guide.normal[1][q.clone()], &guide.normal[2][q.clone()]];
+        let [ppx, ppy, ppz] =
+            [&guide.position[0][p.clone()], &guide.position[1][p.clone()], &guide.position[2][p.clone()]];
+        let [qpx, qpy, qpz] =
+            [&guide.position[0][q.clone()], &guide.position[1][q.clone()], &guide.position[2][q.clone()]];
+        let (plum, qlum, qfoot) = (&lum[p], &lum[q.clone()], &guide.footprint[q.clone()]);
+        let [qr, qg, qb] = [&signal.colour[0][q.clone()], &signal.colour[1][q.clone()], &signal.colour[2][q.clone()]];
+        let qvar = &signal.var[q];
+        let [sr, sg, sb] = &mut sums.colour;
+        let (sr, sg, sb) = (&mut sr[row.clone()], &mut sg[row.clone()], &mut sb[row.clone()]);
+        let (sv, sw) = (&mut sums.var[row.clone()], &mut sums.weight[row]);
+        let (luminance_scale, plane_scale) = (&luminance_scale[..n], &plane_scale[..n]);
+        for i in 0..n {
+            let mut normal = (pnx[i] * qnx[i] + pny[i] * qny[i] + pnz[i] * qnz[i]).max(0.0);
+            for _ in 0..NORMAL_POWER {
+                normal *= normal;
+            }
+            let along_normal = pnx[i] * (qpx[i] - ppx[i]) + pny[i] * (qpy[i] - ppy[i]) + pnz[i] * (qpz[i] - ppz[i]);
+            let plane = along_normal.abs() * plane_scale[i] * self.inv_distance;
+            let light = (qlum[i] - plum[i]).abs() * luminance_scale[i];
+            let exponent = plane + light;
+            let weight = self.kernel * normal * exp_neg(exponent.min(MAX_EXPONENT));
+            // Off-surface taps, and taps beyond e^-20 (or NaN), count for nothing.
+            let weight = if qfoot[i] > 0.0 && exponent < MAX_EXPONENT { weight } else { 0.0 };
+            sr[i] += qr[i] * weight;
+            sg[i] += qg[i] * weight;
+            sb[i] += qb[i] * weight;
+            sv[i] += qvar[i] * weight * weight;
+            sw[i] += weight;
+        }
+    }
+}
+
+/// The variance smoothed by a 3×3 Gaussian over surface pixels, as SVGF does before each pass:
+/// one pixel's variance estimate from few samples is itself noisy.
+fn blurred_variance(guide: &GuidePlanes, var: &[f32]) -> Vec<f32> {
+    const GAUSS: [f32; 3] = [0.25, 0.5, 0.25];
+    let (w, h) = (guide.width, guide.height);
+    let masked: Vec<f32> =
+        var.iter().zip(&guide.footprint).map(|(v, f)| if *f > 0.0 { v.max(0.0) } else { 0.0 }).collect();
+    let surface: Vec<f32> = guide.footprint.iter().map(|f| if *f > 0.0 { 1.0 } else { 0.0 }).collect();
+    // Separable: rows, then columns, of the masked variance and of the mask.
+    let horizontal = |plane: &[f32]| -> Vec<f32> {
+        let mut out = vec![0.0; w * h];
+        for (row_out, row) in out.chunks_mut(w).zip(plane.chunks(w)) {
+            for x in 0..w {
+                let left = if x > 0 { row[x - 1] } else { 0.0 };
+                let right = if x + 1 < w { row[x + 1] } else { 0.0 };
+                row_out[x] = GAUSS[0] * left + GAUSS[1] * row[x] + GAUSS[2] * right;
+            }
+        }
+        out
+    };
+    let vertical = |plane: &[f32]| -> Vec<f32> {
+        let mut out = vec![0.0; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let up = if y > 0 { plane[(y - 1) * w + x] } else { 0.0 };
+                let down = if y + 1 < h { plane[(y + 1) * w + x] } else { 0.0 };
+                out[y * w + x] = GAUSS[0] * up + GAUSS[1] * plane[y * w + x] + GAUSS[2] * down;
+            }
+        }
+        out
+    };
+    let (sum, total) = (vertical(&horizontal(&masked)), vertical(&horizontal(&surface)));
+    sum.iter().zip(&total).map(|(s, t)| if *t > 0.0 { s / t } else { 0.0 }).collect()
+}
+
+/// Smallest albedo channel divided by (dark surfaces would blow their noise up).
+pub(crate) const MIN_ALBEDO: f32 = 0.01;
+
+impl Atrous {
+    /// The denoised image of `colour` (a film's mean), whose per-pixel variance of the mean is
+    /// `variance`, guided by `guide` (same size).
+    pub fn denoise(&self, colour: &[Vec3], variance: &[Vec3], guide: &Guide) -> Vec<Vec3> {
+        let n = (guide.width * guide.height) as usize;
+        assert!(colour.len() == n && variance.len() == n, "image and guide sizes differ");
+        let albedo: Vec<Vec3> = guide.albedo.iter().map(|a| a.max(Vec3::splat(MIN_ALBEDO))).collect();
+        let illumination: Vec<Vec3> = colour.iter().zip(&albedo).map(|(c, a)| *c / *a).collect();
+        let var = variance
+            .iter()
+            .zip(&albedo)
+            .map(|(v, a)| {
+                // The luminance's standard deviation, channels taken as fully correlated (one
+                // path makes all three), then squared.
+                let sd = luminance(Vec3::new(v.x.sqrt(), v.y.sqrt(), v.z.sqrt()) / *a);
+                sd * sd
+            })
+            .collect();
+        let out = self.filter(&GuidePlanes::new(guide), Signal::new(&illumination, var), |_| {});
+        (0..n).map(|i| if guide.footprint[i] > 0.0 { out.get(i) * albedo[i] } else { colour[i] }).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampler::Pcg32;
+
+    const W: u32 = 48;
+    const H: u32 = 32;
+
+    /// A flat wall facing the camera (normal +z at z = 0) seen head-on, one unit per pixel.
+    fn wall() -> Guide {
+        wall_of(W, H)
+    }
+
+    fn wall_of(width: u32, height: u32) -> Guide {
+        let n = (width * height) as usize;
+        Guide {
+            width,
+            height,
+            albedo: vec![Vec3::splat(0.5); n],
+            normal: vec![Vec3::Z; n],
+            position: (0..n).map(|i| Vec3::new((i as u32 % width) as f32, (i as u32 / width) as f32, 0.0)).collect(),
+            footprint: vec![1.0; n],
+        }
+    }
+
+    /// Noise of standard deviation `sd` around `base`, the same in all three channels.
+    fn noisy(base: impl Fn(usize) -> f32, sd: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
+        let mut rng = Pcg32::new(seed, 1);
+        let colour = (0..(W * H) as usize)
+            .map(|i| {
+                // A sum of 4 uniforms, scaled to the standard deviation: near Gaussian.
+                let u: f32 = (0..4).map(|_| rng.next_f32() - 0.5).sum::<f32>() * (3.0f32).sqrt();
+                Vec3::splat(base(i) + sd * u)
+            })
+            .collect();
+        (colour, vec![Vec3::splat(sd * sd); (W * H) as usize])
+    }
+
+    fn variance(v: impl Iterator<Item = f32>) -> f32 {
+        let v: Vec<f32> = v.collect();
+        let mean = v.iter().sum::<f32>() / v.len() as f32;
+        v.iter().map(|x| (x - mean).powi(2)).sum::<f32>() / v.len() as f32
+    }
+
+    #[test]
+    fn a_constant_image_stays_constant() {
+        let mut guide = wall();
+        // Albedo edges too: the illumination is what is filtered, the albedo comes back.
+        guide
+            .albedo
+            .iter_mut()
+            .enumerate()
+            .for_each(|(i, a)| *a = if (i / 3) % 2 == 0 { Vec3::splat(0.2) } else { Vec3::ONE });
+        let colour: Vec<Vec3> = guide.albedo.iter().map(|a| *a * Vec3::new(0.3, 0.6, 0.9)).collect();
+        let variance = vec![Vec3::splat(0.01); colour.len()];
+        let out = Atrous::default().denoise(&colour, &variance, &guide);
+        for (i, (a, b)) in out.iter().zip(&colour).enumerate() {
+            assert!((*a - *b).abs().max_element() < 1e-5, "pixel {i}: {a} from {b}");
+        }
+    }
+
+    #[test]
+    fn noise_on_a_flat_surface_is_removed() {
+        let guide = wall();
+        let (colour, var) = noisy(|_| 0.4, 0.1, 1);
+        let out = Atrous::default().denoise(&colour, &var, &guide);
+        let (before, after) = (variance(colour.iter().map(|c| c.x)), variance(out.iter().map(|c| c.x)));
+        assert!(after < 0.02 * before, "pixel variance {before} → {after}");
+        let mean = out.iter().map(|c| c.x).sum::<f32>() / out.len() as f32;
+        assert!((mean - 0.4).abs() < 0.01, "mean {mean}");
+    }
+
+    /// Left and right halves at different levels, split by a normal edge or a depth edge: the
+    /// filter keeps each side's level right up to the edge.
+    #[test]
+    fn no_blur_across_a_normal_or_depth_edge() {
+        let left = |i: usize| (i as u32 % W) < W / 2;
+        let level = |i: usize| if left(i) { 0.4 } else { 0.55 };
+        for edge in ["normal", "depth"] {
+            let mut guide = wall();
+            for i in 0..(W * H) as usize {
+                if !left(i) {
+                    match edge {
+                        "normal" => guide.normal[i] = Vec3::X,
+                        _ => guide.position[i].z = 20.0,
+                    }
+                }
+            }
+            let (colour, var) = noisy(level, 0.05, 2);
+            let out = Atrous::default().denoise(&colour, &var, &guide);
+            for (i, c) in out.iter().enumerate() {
+                // Columns next to the edge: averages of a side's noise, nothing of the other.
+                let column = i as u32 % W;
+                if column + 1 == W / 2 || column == W / 2 {
+                    assert!((c.x - level(i)).abs() < 0.03, "{edge} edge, pixel {i} (column {column}): {}", c.x);
+                }
+            }
+        }
+    }
+
+    /// Images narrower and shorter than the widest step (16 pixels × 2) are filtered too.
+    #[test]
+    fn tiny_images() {
+        for (w, h) in [(1, 1), (3, 40), (40, 2)] {
+            let (n, guide) = ((w * h) as usize, wall_of(w, h));
+            let out = Atrous::default().denoise(&vec![Vec3::splat(0.25); n], &vec![Vec3::splat(0.01); n], &guide);
+            assert!(out.iter().all(|c| (*c - Vec3::splat(0.25)).abs().max_element() < 1e-5), "{w}×{h}");
+        }
+    }
+
+    #[test]
+    fn the_sky_and_lights_are_left_alone() {
+        let mut guide = wall();
+        let (colour, var) = noisy(|_| 0.5, 0.2, 3);
+        for i in 0..W as usize {
+            guide.footprint[i] = 0.0;
+        }
+        let out = Atrous::default().denoise(&colour, &var, &guide);
+        assert_eq!(out[..W as usize], colour[..W as usize]);
+        assert_ne!(out[W as usize..], colour[W as usize..]);
+    }
+
+    #[test]
+    fn exp_neg_is_exp() {
+        for i in 0..=20_000 {
+            let x = i as f32 * 1e-3;
+            let (ours, exact) = (exp_neg(x), (-x).exp());
+            assert!((ours - exact).abs() <= 1e-5 * exact, "e^-{x}: {ours} vs {exact}");
+        }
+    }
+}
