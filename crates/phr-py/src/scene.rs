@@ -107,10 +107,10 @@ impl Scene {
 
     /// Path traces a view: `spp` frames of one sample per pixel, accumulated, as
     /// `phr render` (same arguments, same defaults: the file's settings, builder `sbvh`,
-    /// seed 0, integrator `path`: light sampling with MIS; `implicit`: the thesis's). The array
-    /// is the raw mean, as `phr render --linear` writes it, unless `denoiser="atrous"`: then it
-    /// is what `phr render --out` writes. Returns the linear mean radiance, float32 of shape (height, width, 3), top row
-    /// first.
+    /// seed 0, integrator `path`: light sampling with MIS; `implicit`: the thesis's). Returns
+    /// linear radiance, float32 of shape (height, width, 3), top row first: the raw mean, as
+    /// `phr render --linear` writes it, or with `denoiser="atrous"` what `phr render --out`
+    /// writes.
     #[pyo3(signature = (width = None, height = None, spp = None, view = None, seed = 0, max_depth = None, builder = "sbvh", integrator = "path", denoiser = "none", threads = None))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(

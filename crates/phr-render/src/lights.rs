@@ -87,15 +87,6 @@ fn cone(sphere: &Sphere, from: Vec3) -> Option<f32> {
     (one_minus_cos > 0.0).then_some(one_minus_cos)
 }
 
-/// An orthonormal basis around the unit `n` (Duff et al. 2017, "Building an Orthonormal
-/// Basis, Revisited").
-fn basis(n: Vec3) -> (Vec3, Vec3) {
-    let sign = 1.0f32.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
-}
-
 impl LightSet {
     /// The emitters of `geometry` with `materials`, and `background` if it is not black.
     pub fn new(geometry: &Geometry, materials: &[Material], background: &Background) -> Self {
@@ -214,7 +205,8 @@ impl LightSet {
             let axis = sphere.center - position;
             let dist = axis.length();
             let axis = axis / dist;
-            let (x, y) = basis(axis);
+            // Duff et al. 2017's basis ("Building an Orthonormal Basis, Revisited").
+            let (x, y) = axis.any_orthonormal_pair();
             let (sp, cp) = (TAU * u2).sin_cos();
             let dir = (x * (sin * cp) + y * (sin * sp) + axis * cos).normalize();
             // The nearest point of the sphere along `dir` (clamped at the silhouette).

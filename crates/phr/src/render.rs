@@ -71,7 +71,7 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value = "path")]
     pub integrator: Integrator,
     /// `atrous`: the edge-avoiding à-trous filter guided by the first hits' albedo, normals
-    /// and positions, and by the film's variance (`crates/phr-render/src/denoise.rs`).
+    /// and positions, and by the film's variance (`crates/phr-render/src/denoise/atrous.rs`).
     #[arg(long, value_enum, default_value = "atrous")]
     pub denoiser: Denoiser,
 }

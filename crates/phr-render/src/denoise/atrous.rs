@@ -18,6 +18,7 @@
 
 use super::Guide;
 use glam::Vec3;
+use phr_bvh::SimdLevel;
 use rayon::prelude::*;
 
 /// The filter's settings; the defaults are SVGF's (σl = 4, and the normal exponent 128) and
@@ -92,7 +93,6 @@ impl GuidePlanes {
 }
 
 /// What a pass filters: the illumination (three planes) and the variance of its luminance.
-#[derive(Clone)]
 pub(crate) struct Signal {
     pub colour: [Vec<f32>; 3],
     pub var: Vec<f32>,
@@ -148,13 +148,13 @@ impl Atrous {
         let (w, h) = (guide.width, guide.height);
         let lum = signal.luminance();
         let blurred = blurred_variance(guide, &signal.var);
-        let wide = Self::has_avx2_fma();
+        let wide = SimdLevel::detect() == SimdLevel::Avx2;
         let rows: Vec<RowSums> = (0..h)
             .into_par_iter()
             .map(|y| {
                 let args = (guide, signal, &lum[..], &blurred[..], y, step);
                 if wide {
-                    // SAFETY: the CPU has AVX2 and FMA (checked above).
+                    // SAFETY: the CPU has AVX2 (checked above).
                     unsafe { self.row_avx2(args) }
                 } else {
                     self.row(args)
@@ -182,24 +182,14 @@ impl Atrous {
         out
     }
 
-    fn has_avx2_fma() -> bool {
-        #[cfg(target_arch = "x86_64")]
-        {
-            is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            false
-        }
-    }
-
-    /// [`Atrous::row`] compiled for AVX2 and FMA (8 taps at a time).
+    /// [`Atrous::row`] compiled for AVX2 (8 taps at a time).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
+    #[target_feature(enable = "avx2")]
     fn row_avx2(&self, args: RowArgs) -> RowSums {
         self.row(args)
     }
 
+    /// Never called: [`SimdLevel::detect`] finds no AVX2 off x86-64.
     #[cfg(not(target_arch = "x86_64"))]
     unsafe fn row_avx2(&self, args: RowArgs) -> RowSums {
         self.row(args)

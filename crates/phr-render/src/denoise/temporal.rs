@@ -28,6 +28,22 @@ pub const MAX_PLANE_FOOTPRINTS: f32 = 2.0;
 /// Below this many frames of history, a pixel's variance comes from its neighbours.
 pub const SPATIAL_VARIANCE_UNTIL: f32 = 4.0;
 
+/// Whether a pixel at `other_position` with `other_normal` lies on the surface of a pixel
+/// at `position` (unit `normal`, `footprint`), `offset` pixels away: normals within
+/// [`MIN_NORMAL_COS`], and within [`MAX_PLANE_FOOTPRINTS`] footprints per pixel of offset of
+/// the tangent plane.
+fn same_surface(
+    normal: Vec3,
+    position: Vec3,
+    footprint: f32,
+    other_normal: Vec3,
+    other_position: Vec3,
+    offset: f32,
+) -> bool {
+    normal.dot(other_normal) >= MIN_NORMAL_COS
+        && normal.dot(other_position - position).abs() <= MAX_PLANE_FOOTPRINTS * footprint * offset
+}
+
 /// History lengths stop growing here (only the blend weight's floor matters beyond).
 const MAX_HISTORY: f32 = 256.0;
 
@@ -155,11 +171,10 @@ impl Temporal {
                     for qy in (y - 3).max(0)..(y + 4).min(h) {
                         for qx in (x - 3).max(0)..(x + 4).min(w) {
                             let j = (qy * w + qx) as usize;
-                            if blended[j].length <= 0.0 || n.dot(guide.normal[j]) < MIN_NORMAL_COS {
-                                continue;
-                            }
                             let offset = (((qx - x).pow(2) + (qy - y).pow(2)) as f32).sqrt().max(1.0);
-                            if n.dot(guide.position[j] - p).abs() > MAX_PLANE_FOOTPRINTS * f * offset {
+                            if blended[j].length <= 0.0
+                                || !same_surface(n, p, f, guide.normal[j], guide.position[j], offset)
+                            {
                                 continue;
                             }
                             sum[0] += blended[j].moments[0];
@@ -198,10 +213,7 @@ impl History {
                 continue;
             }
             let j = y as usize * self.width + x as usize;
-            let same_surface = self.length[j] > 0.0
-                && n.dot(self.normal[j]) >= MIN_NORMAL_COS
-                && n.dot(self.position[j] - p).abs() <= MAX_PLANE_FOOTPRINTS * f;
-            if same_surface && weight > 0.0 {
+            if self.length[j] > 0.0 && weight > 0.0 && same_surface(n, p, f, self.normal[j], self.position[j], 1.0) {
                 sum.illumination += self.illumination[j] * weight;
                 sum.moments[0] += self.moments[j][0] * weight;
                 sum.moments[1] += self.moments[j][1] * weight;
