@@ -141,6 +141,14 @@ impl TopLevel {
         self.instances = instances;
     }
 
+    /// Bytes held: the instances and the tree.
+    pub fn memory(&self) -> usize {
+        use std::mem::size_of;
+        self.instances.capacity() * size_of::<Instance>()
+            + self.tree.nodes.capacity() * size_of::<crate::wide::WideNode<8>>()
+            + self.tree.prim_indices.capacity() * size_of::<u32>()
+    }
+
     pub fn instances(&self) -> &[Instance] {
         &self.instances
     }

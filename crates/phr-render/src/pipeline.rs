@@ -436,6 +436,8 @@ impl FramePipeline {
                 self.build_cost = 0;
             }
         }
+        // The meshes placed many times: built once, the first time.
+        report.build_ms += self.geometry.build_copies(&self.settings.builder).as_secs_f64() * 1e3;
         self.sah = sah_cost(self.geometry.bvh(), SahConstants::UNIT);
         self.tree_dirty = false;
     }

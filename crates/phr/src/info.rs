@@ -28,12 +28,21 @@ pub fn run(args: &InfoArgs) -> Result<()> {
     let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;
     let mut geometry = Geometry::new(&scene);
     let report = geometry.build_report(&builder);
-    let build = crate::render::describe_build(&builder, &report);
+    let mut build = crate::render::describe_build(&builder, &report);
     geometry.set_bvh(report.bvh);
+    build += &crate::render::describe_copies(&scene, geometry.build_copies(&builder));
     let b = scene.bounds();
     println!("scene       {}", args.scene);
     println!("load        {load_ms:.1} ms");
     println!("triangles   {}", geometry.triangles.len());
+    if !scene.instanced.is_empty() {
+        let (placed, stored) = scene.instanced_triangle_count();
+        println!(
+            "copies      {} of {} meshes: {placed} triangles placed, {stored} stored",
+            geometry.copy_count(),
+            scene.instanced.len()
+        );
+    }
     println!("spheres     {}", geometry.spheres.len());
     println!("meshes      {}", scene.meshes.len());
     println!("materials   {}", scene.material_names.join(", "));
@@ -55,7 +64,9 @@ pub fn run(args: &InfoArgs) -> Result<()> {
         sah_cost(geometry.bvh(), SahConstants::THESIS)
     );
     let mem = geometry.memory();
-    let per_triangle = |bytes: usize| bytes as f64 / geometry.prim_count().max(1) as f64;
+    // Per stored primitive: a mesh placed many times counts once.
+    let stored = geometry.prim_count() + scene.instanced_triangle_count().1;
+    let per_triangle = |bytes: usize| bytes as f64 / stored.max(1) as f64;
     let mb = |bytes: usize| bytes as f64 / (1 << 20) as f64;
     println!(
         "memory      {:.1} MB: triangles {:.1}, boxes {:.1}, tree {:.1}, wide tree + packed triangles {:.1} \

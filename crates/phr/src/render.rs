@@ -156,8 +156,9 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;
     let mut geometry = Geometry::new(&scene);
     let report = geometry.build_report(&builder);
-    let build = describe_build(&builder, &report);
+    let mut build = describe_build(&builder, &report);
     geometry.set_bvh(report.bvh);
+    build += &describe_copies(&scene, geometry.build_copies(&builder));
     let lights =
         (args.integrator == Integrator::Path).then(|| LightSet::new(&geometry, &scene.materials, &scene.background));
 
@@ -238,6 +239,21 @@ fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
 }
 
 /// "phr-fast build 12.3 ms (LBVH 4.1 + PHR 8.2, Σ|cut| 185317)" or "lbvh build 4.0 ms".
+/// What the copies of meshes placed many times add to a build, after its description
+/// (nothing when there are none).
+pub fn describe_copies(scene: &phr_render::scene::Scene, time: std::time::Duration) -> String {
+    let (placed, stored) = scene.instanced_triangle_count();
+    if scene.instanced.is_empty() {
+        return String::new();
+    }
+    let copies: usize = scene.instanced.iter().map(|i| i.copies.len()).sum();
+    format!(
+        " + {copies} copies of {} meshes ({stored} triangles stored, {placed} placed) {:.1} ms",
+        scene.instanced.len(),
+        time.as_secs_f64() * 1e3
+    )
+}
+
 pub fn describe_build(builder: &Builder, report: &BuildReport) -> String {
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
     match report.phr {

@@ -8,19 +8,21 @@
 //! `quad`, `triangle`, `triangles`, `mesh` (one material for a whole OBJ/PLY/glTF file),
 //! `obj_mtl` (an OBJ with its MTL, optional per-name overrides and `"mtl_mapping": "reference"
 //! | "full"`, see [`super::materials`]), `gltf` (a glTF file with its own materials and
-//! cameras). File paths may start with `{scenes}`, the shared scenes folder (see
+//! cameras). Objects made of triangles may carry `instances`, a list of transforms: the object
+//! is then placed once per transform and its triangles are stored once. File paths may start with `{scenes}`, the shared scenes folder (see
 //! [`scenes_dir`]); other relative paths are relative to the scene file. `docs/scene-format.md`
 //! documents every key.
 
 use super::materials::MtlMapping;
-use super::{Background, Mesh, RenderSettings, Scene, SphereObject};
+use super::{Background, InstancedMesh, Mesh, RenderSettings, Scene, SphereObject};
 use crate::camera::CameraDesc;
 use crate::error::LoadError;
 use crate::load::{load_mesh, MeshData};
 use crate::material::Material;
 use crate::motion::{Animation, AnimationTarget, Motion, ObjectAnimation};
-use glam::{Mat4, Quat, Vec2, Vec3};
+use glam::{Affine3A, Mat4, Quat, Vec2, Vec3};
 use indexmap::IndexMap;
+use phr_bvh::instance::Instance;
 use phr_bvh::sphere::Sphere;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -64,6 +66,8 @@ struct ObjectEntry {
     #[serde(flatten)]
     object: ObjectFile,
     animate: Option<MotionsFile>,
+    /// Placements of the object (after its own `transform`), one copy each.
+    instances: Option<Vec<TransformFile>>,
 }
 
 #[derive(Deserialize)]
@@ -341,12 +345,12 @@ const CAMERA_KEYS: &[&str] = &["position", "lookfrom", "look_at", "lookat", "up"
 fn object_keys(kind: &str) -> Option<&'static [&'static str]> {
     Some(match kind {
         "sphere" => &["type", "center", "radius", "material", "animate"],
-        "quad" => &["type", "Q", "u", "v", "material", "transform", "animate"],
-        "triangle" => &["type", "v0", "v1", "v2", "material", "transform", "animate"],
-        "triangles" => &["type", "vertices", "faces", "material", "transform", "animate"],
-        "mesh" => &["type", "file", "material", "transform", "smooth_normals", "animate"],
-        "obj_mtl" => &["type", "file", "materials", "material", "transform", "mtl_mapping", "animate"],
-        "gltf" => &["type", "file", "transform", "animate"],
+        "quad" => &["type", "Q", "u", "v", "material", "transform", "animate", "instances"],
+        "triangle" => &["type", "v0", "v1", "v2", "material", "transform", "animate", "instances"],
+        "triangles" => &["type", "vertices", "faces", "material", "transform", "animate", "instances"],
+        "mesh" => &["type", "file", "material", "transform", "smooth_normals", "animate", "instances"],
+        "obj_mtl" => &["type", "file", "materials", "material", "transform", "mtl_mapping", "animate", "instances"],
+        "gltf" => &["type", "file", "transform", "animate", "instances"],
         _ => return None,
     })
 }
@@ -420,8 +424,11 @@ impl SceneBuilder<'_> {
             if let Some(animate) = &entry.animate {
                 self.animate(i, animate, meshes, spheres)?;
             }
+            if let Some(instances) = &entry.instances {
+                self.instance(i, instances, meshes)?;
+            }
         }
-        if self.scene.meshes.is_empty() && self.scene.spheres.is_empty() {
+        if self.scene.meshes.is_empty() && self.scene.instanced.is_empty() && self.scene.spheres.is_empty() {
             return Err(self.err("the scene has no objects"));
         }
         if self.scene.views.is_empty() {
@@ -507,6 +514,49 @@ impl SceneBuilder<'_> {
             });
         }
         self.scene.animations.push(ObjectAnimation { target, animation: Animation::Procedural(motions) });
+        Ok(())
+    }
+
+    /// Turns the meshes object `i` has just added (from number `meshes` on) into one mesh
+    /// placed by each of `instances`. Copies of an emitting mesh become ordinary triangles
+    /// instead (light sampling picks emitting triangles one by one, where they are), at most
+    /// [`MAX_COPIED_TRIANGLES`] of them.
+    fn instance(&mut self, i: usize, instances: &[TransformFile], meshes: usize) -> Result<(), LoadError> {
+        let path = self.path;
+        let bad = |what: String| LoadError::new(path, format!("object {i}: instances: {what}"));
+        if self.scene.animations.iter().any(|a| matches!(a.target, AnimationTarget::Mesh(m) if m >= meshes)) {
+            return Err(bad("an object with instances cannot move (animate, or a glTF animation)".into()));
+        }
+        if instances.is_empty() {
+            return Err(bad("the list is empty: nothing would be placed".into()));
+        }
+        let copies = instances
+            .iter()
+            .enumerate()
+            .map(|(k, t)| {
+                Instance::new(Affine3A::from_mat4(t.matrix()))
+                    .ok_or_else(|| bad(format!("transform {k} is not finite or cannot be inverted")))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let mesh = merge_meshes(self.scene.meshes.drain(meshes..));
+        let emits = mesh.triangle_material.iter().any(|&m| self.scene.materials[m as usize].is_emissive());
+        if !emits {
+            self.scene.instanced.push(InstancedMesh { mesh, copies });
+            return Ok(());
+        }
+        if mesh.triangles.len().saturating_mul(copies.len()) > MAX_COPIED_TRIANGLES {
+            return Err(bad(format!(
+                "{} copies of {} emitting triangles exceed {MAX_COPIED_TRIANGLES} (emitters are copied, not instanced)",
+                copies.len(),
+                mesh.triangles.len()
+            )));
+        }
+        for (k, copy) in copies.iter().enumerate() {
+            let positions = mesh.positions.iter().map(|&p| copy.world_point(p)).collect();
+            let name = format!("{} #{k}", mesh.name);
+            self.push_mesh(&name, positions, mesh.triangles.clone(), mesh.triangle_material.clone());
+            self.scene.meshes.last_mut().expect("pushed").uvs = mesh.uvs.clone();
+        }
         Ok(())
     }
 
@@ -639,6 +689,31 @@ impl SceneBuilder<'_> {
         let name = name.to_string();
         self.scene.meshes.push(Mesh { name, positions, triangles, triangle_material, uvs: Vec::new() });
     }
+}
+
+/// The most triangles the copies of an emitting object may add (see
+/// `SceneBuilder::instance`): 2²⁶, about 3 GiB of vertices and boxes.
+const MAX_COPIED_TRIANGLES: usize = 1 << 26;
+
+/// One mesh of `meshes`' triangles, materials and texture coordinates (zeros for meshes
+/// without any, when another has them), named after the first.
+fn merge_meshes(meshes: impl Iterator<Item = Mesh>) -> Mesh {
+    let meshes: Vec<Mesh> = meshes.collect();
+    let with_uvs = meshes.iter().any(|m| !m.uvs.is_empty());
+    let mut merged = Mesh { name: meshes.first().map(|m| m.name.clone()).unwrap_or_default(), ..Mesh::default() };
+    for m in meshes {
+        let base = merged.positions.len() as u32;
+        merged.triangles.extend(m.triangles.iter().map(|t| t.map(|v| v + base)));
+        merged.positions.extend(m.positions);
+        if with_uvs {
+            match m.uvs.len() {
+                0 => merged.uvs.extend(std::iter::repeat_n([Vec2::ZERO; 3], m.triangles.len())),
+                _ => merged.uvs.extend(m.uvs),
+            }
+        }
+        merged.triangle_material.extend(m.triangle_material);
+    }
+    merged
 }
 
 /// A camera from the file, refused if it cannot form an image: a field of view outside

@@ -14,6 +14,7 @@ use crate::material::Material;
 use crate::motion::ObjectAnimation;
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
+use phr_bvh::instance::Instance;
 use phr_bvh::sphere::Sphere;
 
 /// Radiance of rays that leave the scene.
@@ -57,6 +58,31 @@ pub struct Mesh {
     pub triangle_material: Vec<u32>,
     /// Texture coordinates of each triangle's corners, or empty (no texture coordinates).
     pub uvs: Vec<[Vec2; 3]>,
+}
+
+impl Mesh {
+    /// Its vertices' bounds.
+    pub fn bounds(&self) -> phr_bvh::Aabb {
+        self.positions.iter().fold(phr_bvh::Aabb::EMPTY, |b, &p| b.grown(p))
+    }
+}
+
+/// A mesh placed many times (a scene file's `instances`): its triangles once, in its object
+/// space, and one placement per copy. The renderer builds one tree for it and traces every copy
+/// through that tree (`crate::geometry`), so a thousand copies cost about one copy's memory.
+#[derive(Clone, Debug)]
+pub struct InstancedMesh {
+    pub mesh: Mesh,
+    /// Object space to world space, one per copy; each is invertible and finite.
+    pub copies: Vec<Instance>,
+}
+
+impl InstancedMesh {
+    /// World bounds of all its copies.
+    pub fn bounds(&self) -> phr_bvh::Aabb {
+        let object = self.mesh.bounds();
+        self.copies.iter().fold(phr_bvh::Aabb::EMPTY, |b, c| b.union(c.world_box(object)))
+    }
 }
 
 /// A sphere and its material.
@@ -121,6 +147,8 @@ pub struct Scene {
     pub materials: Vec<Material>,
     pub material_names: Vec<String>,
     pub meshes: Vec<Mesh>,
+    /// Meshes placed many times, apart from `meshes` (which are each placed once).
+    pub instanced: Vec<InstancedMesh>,
     pub spheres: Vec<SphereObject>,
     pub background: Background,
     /// Named views; the first is the default.
@@ -143,6 +171,7 @@ impl Default for Scene {
             materials: Vec::new(),
             material_names: Vec::new(),
             meshes: Vec::new(),
+            instanced: Vec::new(),
             spheres: Vec::new(),
             background: Background::Constant(Vec3::ZERO),
             views: Vec::new(),
@@ -213,8 +242,16 @@ impl Scene {
         self.material_names.iter().position(|n| n == name).map(|i| i as u32)
     }
 
+    /// Triangles of the meshes placed once (the renderer's primitive array).
     pub fn triangle_count(&self) -> usize {
         self.meshes.iter().map(|m| m.triangles.len()).sum()
+    }
+
+    /// Triangles the copies of [`Scene::instanced`] place in the world (each counted once per
+    /// copy), and the triangles they store.
+    pub fn instanced_triangle_count(&self) -> (u64, usize) {
+        let placed = self.instanced.iter().map(|i| i.mesh.triangles.len() as u64 * i.copies.len() as u64).sum();
+        (placed, self.instanced.iter().map(|i| i.mesh.triangles.len()).sum())
     }
 
     /// The view called `name`, or the first one (a default camera if the scene has none).
@@ -233,9 +270,10 @@ impl Scene {
     pub fn bounds(&self) -> phr_bvh::Aabb {
         let mut b = phr_bvh::Aabb::EMPTY;
         for m in &self.meshes {
-            for &p in &m.positions {
-                b = b.grown(p);
-            }
+            b = b.union(m.bounds());
+        }
+        for i in &self.instanced {
+            b = b.union(i.bounds());
         }
         for s in &self.spheres {
             b = b.union(s.sphere.bounds());
@@ -277,7 +315,7 @@ impl Scene {
         let within = |p: Vec3| p.abs().max_element() <= MAX_COORDINATE;
         let show = |p: Vec3| format!("({:.3e}, {:.3e}, {:.3e})", p.x, p.y, p.z);
         // Bounds skip NaN coordinates (min and max ignore them), so look at every vertex.
-        for mesh in &self.meshes {
+        for mesh in self.meshes.iter().chain(self.instanced.iter().map(|i| &i.mesh)) {
             if let Some(p) = mesh.positions.iter().find(|p| !p.is_finite()) {
                 let message = format!("mesh {}: a vertex is not finite {} after its transform", mesh.name, show(*p));
                 return Err(crate::error::LoadError::new(path, message));

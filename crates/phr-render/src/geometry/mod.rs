@@ -25,6 +25,12 @@
 //! is private so that the wide copy can never be stale; the
 //! counting query for heatmaps ([`Geometry::intersect_counted`]) keeps the binary reference
 //! traversal, whose node counts are the thesis's traversal steps.
+//!
+//! Meshes the scene places many times ([`crate::scene::InstancedMesh`]) are kept apart from
+//! all of this, each stored and built once ([`copies`]): every query searches them after the
+//! parts.
+
+mod copies;
 
 use crate::scene::{Scene, SphereObject};
 use glam::{Affine3A, Vec2, Vec3};
@@ -35,6 +41,9 @@ use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
 use phr_bvh::wide::{WideStats, PAD};
 use phr_bvh::{closest_hit_counted, Aabb, Builder, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
 use std::borrow::Cow;
+
+use copies::Copies;
+pub use copies::COPY;
 
 /// A closest hit: distance, primitive, and barycentrics for triangles.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -47,7 +56,9 @@ pub struct Hit {
     /// reads its vertices from the packed block the intersection test has just loaded,
     /// instead of from the scene-order array (a cache miss per hit).
     pub slot: u32,
-    /// The part whose tree found it (0 with one tree): its instance places the hit.
+    /// The part whose tree found it (0 with one tree): its instance places the hit. With
+    /// [`COPY`] set: the copy of a mesh placed many times, and `prim` numbers the triangle
+    /// within that mesh.
     pub part: u32,
 }
 
@@ -98,6 +109,8 @@ pub struct Geometry {
     placement: Option<Placement>,
     /// The part of each primitive (empty while there is one part).
     prim_part: Vec<u32>,
+    /// The meshes placed many times, apart from the primitives above.
+    copies: Copies,
 }
 
 /// Which parts a ray visits, and how.
@@ -215,6 +228,7 @@ impl Geometry {
             parts: vec![Part::default()],
             placement: None,
             prim_part: Vec::new(),
+            copies: Copies::new(scene),
         };
         g.update_boxes();
         g
@@ -234,10 +248,27 @@ impl Geometry {
         self.boxes = boxes;
     }
 
-    /// Builds one BVH over the whole scene with `builder` and sets it ([`Geometry::set_bvh`]).
+    /// Builds one BVH over the whole scene with `builder` and sets it ([`Geometry::set_bvh`]),
+    /// and the trees of the meshes placed many times ([`Geometry::build_copies`]).
     pub fn build(&mut self, builder: &Builder) {
         let report = self.build_report(builder);
         self.set_bvh(report.bvh);
+        self.build_copies(builder);
+    }
+
+    /// Builds the tree of each mesh the scene places many times, once (later calls return at
+    /// once), and the top-level tree over their copies: what rays need besides the trees of
+    /// [`Geometry::set_bvh`] or [`Geometry::split`], which leave the copies alone. Returns the
+    /// time it took.
+    pub fn build_copies(&mut self, builder: &Builder) -> std::time::Duration {
+        let start = std::time::Instant::now();
+        self.copies.build(builder);
+        start.elapsed()
+    }
+
+    /// Number of copies of meshes placed many times.
+    pub fn copy_count(&self) -> usize {
+        self.copies.len()
     }
 
     /// A BVH over the whole scene by `builder`, with its timings, from the current boxes (and
@@ -283,6 +314,7 @@ impl Geometry {
             self.set_part_bvh(k, bvh);
         }
         self.place(&[]);
+        self.build_copies(builder);
     }
 
     /// Number of parts (1 unless [`Geometry::split`]).
@@ -443,16 +475,20 @@ impl Geometry {
         self.placement = Some(placement);
     }
 
-    /// Bytes held, by part: the triangles (vertices and material indices), the primitive
-    /// boxes, the builders' trees (nodes, leaf order, parents), and what the renderer traces
-    /// (the wide trees and the packed triangles). Capacities, not lengths: what is allocated.
+    /// Bytes held, by part: the triangles (vertices, material indices and texture
+    /// coordinates), the primitive boxes, the builders' trees (nodes, leaf order, parents), and
+    /// what the renderer traces (the wide trees and the packed triangles, and the copies of
+    /// meshes placed many times). Capacities, not lengths: what is allocated.
     pub fn memory(&self) -> GeometryMemory {
         use std::mem::size_of;
         let bytes = |capacity: usize, size: usize| capacity * size;
         let parts = |f: &dyn Fn(&Part) -> usize| self.parts.iter().map(f).sum::<usize>();
+        let (copies_triangles, copies_traced) = self.copies.memory();
         GeometryMemory {
             triangles: bytes(self.triangles.capacity(), size_of::<[Vec3; 3]>())
-                + bytes(self.triangle_material.capacity(), size_of::<u32>()),
+                + bytes(self.triangle_material.capacity(), size_of::<u32>())
+                + bytes(self.triangle_uv.capacity(), size_of::<[Vec2; 3]>())
+                + copies_triangles,
             boxes: bytes(self.boxes.capacity(), size_of::<Aabb>()),
             tree: parts(&|p| {
                 bytes(p.bvh.nodes.capacity(), size_of::<phr_bvh::Node>())
@@ -460,11 +496,7 @@ impl Geometry {
                     + bytes(p.bvh.parents.capacity(), size_of::<u32>())
                     + bytes(p.prims.as_ref().map_or(0, Vec::capacity), size_of::<u32>())
             }) + bytes(self.prim_part.capacity(), size_of::<u32>()),
-            wide: parts(&|p| {
-                bytes(p.wide.nodes.capacity(), size_of::<phr_bvh::wide::WideNode<WIDTH>>())
-                    + bytes(p.wide.prim_indices.capacity(), size_of::<u32>())
-                    + bytes(p.packed.blocks.capacity(), size_of::<phr_bvh::wide::triangles::TriangleBlock>())
-            }),
+            wide: parts(&|p| p.traced_bytes()) + copies_traced,
         }
     }
 
@@ -579,13 +611,17 @@ impl Geometry {
     /// The closest hit along `ray` within its interval.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        if self.placement.is_none() {
+        if self.placement.is_none() && self.copies.is_empty() {
             return self.parts[0].intersect(self, 0, ray);
         }
         let mut r = *ray;
         let mut best = None;
         self.search_parts::<false>(&mut r, |k, object_ray| {
             let hit = self.parts[k as usize].intersect(self, k, object_ray);
+            Self::keep_closest(hit, object_ray, &mut best)
+        });
+        self.copies.search::<false>(&mut r, |c, object_ray| {
+            let hit = self.copies.copy(c).0.intersect(self, COPY | c, object_ray);
             Self::keep_closest(hit, object_ray, &mut best)
         });
         best
@@ -595,6 +631,9 @@ impl Geometry {
     /// first hit.
     pub fn occluded(&self, ray: &Ray) -> bool {
         self.search_parts::<true>(&mut ray.clone(), |k, object_ray| self.parts[k as usize].occluded(self, object_ray))
+            || self
+                .copies
+                .search::<true>(&mut ray.clone(), |c, object_ray| self.copies.copy(c).0.occluded(self, object_ray))
     }
 
     /// [`Geometry::intersect`] through the builders' trees (the binary reference traversal),
@@ -623,6 +662,31 @@ impl Geometry {
             }
             closest_hit_counted(&part.bvh, object_ray, |p, r| self.test_prim(p, k, r, &mut best), stats)
         });
+        self.copies.search::<false>(&mut r, |c, object_ray| {
+            let (part, _) = self.copies.copy(c);
+            let mut wide = WideStats::default();
+            let found = part.wide.closest_hit_leaves_counted(
+                object_ray,
+                |first, count, r| {
+                    (first..first + count).fold(false, |found, slot| {
+                        let prim = part.wide.prim_indices[slot as usize];
+                        let hit = part.packed.intersect(slot, r).map(|h| Hit {
+                            t: h.t,
+                            prim,
+                            u: h.u,
+                            v: h.v,
+                            slot,
+                            part: COPY | c,
+                        });
+                        Self::keep_closest(hit, r, &mut best) | found
+                    })
+                },
+                &mut wide,
+            );
+            stats.nodes += wide.nodes;
+            stats.prims += wide.prims;
+            found
+        });
         best
     }
 
@@ -642,15 +706,23 @@ impl Geometry {
 
     /// Position, normal and side of a hit, in the world.
     pub fn surface_point(&self, ray: &Ray, hit: &Hit) -> SurfacePoint {
-        let part = &self.parts[hit.part as usize];
-        let instance = &part.instance;
+        let copy = hit.part & COPY != 0;
+        let instance =
+            if copy { self.copies.copy(hit.part & !COPY).1 } else { &self.parts[hit.part as usize].instance };
+        let local = |ray: &Ray| {
+            if copy {
+                self.copies.local_surface(hit.part & !COPY, hit)
+            } else {
+                self.local_surface(&self.parts[hit.part as usize], ray, hit)
+            }
+        };
         let (position, normal, material, rel) = if instance.is_identity() {
-            self.local_surface(part, ray, hit)
+            local(ray)
         } else {
-            let (p, n, material, rel) = self.local_surface(part, &instance.object_ray(ray), hit);
+            let (p, n, material, rel) = local(&instance.object_ray(ray));
             // A mirroring transform turns a triangle's e1 × e2 around; a sphere's outward
             // normal stays outward.
-            let flip = instance.mirrors() && (hit.prim as usize) < self.triangles.len();
+            let flip = instance.mirrors() && (copy || (hit.prim as usize) < self.triangles.len());
             let n = instance.world_normal(if flip { -n } else { n });
             (instance.world_point(p), n.normalize_or(Vec3::Z), material, rel)
         };
@@ -662,6 +734,9 @@ impl Geometry {
     /// The texture coordinates at a hit (zero for spheres and meshes without any).
     #[inline]
     pub fn uv(&self, hit: &Hit) -> Vec2 {
+        if hit.part & COPY != 0 {
+            return self.copies.uv(hit.part & !COPY, hit).unwrap_or(Vec2::ZERO);
+        }
         match self.triangle_uv.get(hit.prim as usize) {
             Some([a, b, c]) => *a + (*b - *a) * hit.u + (*c - *a) * hit.v,
             None => Vec2::ZERO,
@@ -682,8 +757,7 @@ impl Geometry {
                 }
                 slot => part.packed.get(slot),
             };
-            let p = v0 + e1 * hit.u + e2 * hit.v;
-            let n = e1.cross(e2).normalize_or(Vec3::Z);
+            let (p, n) = triangle_surface(v0, e1, e2, hit.u, hit.v);
             (p, n, self.triangle_material[hit.prim as usize], TRIANGLE_OFFSET)
         } else {
             let s = &self.spheres[hit.prim as usize - n_tris];
@@ -697,14 +771,34 @@ impl Geometry {
     }
 }
 
+/// The point at barycentrics `(u, v)` of the triangle `v0, e1, e2` and its unit normal
+/// `e1 × e2`.
+#[inline(always)]
+fn triangle_surface(v0: Vec3, e1: Vec3, e2: Vec3, u: f32, v: f32) -> (Vec3, Vec3) {
+    (v0 + e1 * u + e2 * v, e1.cross(e2).normalize_or(Vec3::Z))
+}
+
 impl Part {
     /// A box around it in the world: the union of its wide root's children's boxes placed by
     /// its instance (under a rotation, tighter than its whole object box placed).
     fn world_bounds(&self) -> Aabb {
+        self.bounds_placed(&self.instance)
+    }
+
+    /// [`Part::world_bounds`] with the part placed by `instance` instead of its own.
+    fn bounds_placed(&self, instance: &Instance) -> Aabb {
         let Some(root) = self.wide.nodes.first() else { return Aabb::EMPTY };
         (0..WIDTH)
             .filter(|&i| root.is_used(i))
-            .fold(Aabb::EMPTY, |b, i| b.union(self.instance.world_box(root.child_bounds(i))))
+            .fold(Aabb::EMPTY, |b, i| b.union(instance.world_box(root.child_bounds(i))))
+    }
+
+    /// Bytes of what the renderer traces: the wide tree and the packed triangles.
+    fn traced_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.wide.nodes.capacity() * size_of::<phr_bvh::wide::WideNode<WIDTH>>()
+            + self.wide.prim_indices.capacity() * size_of::<u32>()
+            + self.packed.blocks.capacity() * size_of::<phr_bvh::wide::triangles::TriangleBlock>()
     }
 
     /// [`Geometry::keep_closest`] over the leaf entry `i` of the wide tree: triangles from
