@@ -229,3 +229,59 @@ fn copies_of_an_emitter_are_written_out() {
     let lights = phr_render::lights::LightSet::new(&g, &scene.materials, &scene.background);
     assert_eq!(lights.len(), 6, "each copy's two triangles are lights where they are");
 }
+
+/// A glTF whose one-triangle mesh three nodes place: at the root, under a moved and turned
+/// parent, and scaled to zero (hidden); and a second mesh placed once.
+fn shared_gltf() -> String {
+    let floats: [f32; 18] = [0., 0., 0., 1., 0., 0., 0., 1., 0., 0., 0., 2., 1., 0., 2., 0., 1., 2.];
+    let bytes: Vec<u8> = floats.iter().flat_map(|f| f.to_le_bytes()).collect();
+    let data = base64::encode(bytes);
+    format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0,
+  "scenes": [{{"nodes": [0, 1, 3, 4]}}],
+  "nodes": [{{"mesh": 0}}, {{"translation": [3, 0, 0], "rotation": [0, 0.7071068, 0, 0.7071068], "children": [2]}},
+            {{"mesh": 0, "scale": [1, 2, 1]}}, {{"mesh": 0, "scale": [0, 0, 0]}}, {{"mesh": 1}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}}}]}}, {{"primitives": [{{"attributes": {{"POSITION": 1}}}}]}}],
+  "buffers": [{{"byteLength": 72, "uri": "data:application/octet-stream;base64,{data}"}}],
+  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 36}}, {{"buffer": 0, "byteOffset": 36, "byteLength": 36}}],
+  "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}},
+                {{"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 2], "max": [1, 1, 2]}}]}}"#
+    )
+}
+
+#[test]
+fn a_gltf_mesh_that_several_nodes_place_is_instanced() {
+    let dir = std::env::temp_dir().join(format!("phr_shared_gltf_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("shared.gltf");
+    std::fs::write(&file, shared_gltf()).unwrap();
+    // Loading the mesh alone writes every placement out, the hidden one included.
+    let flat = phr_render::load::load_mesh(&file).unwrap();
+    assert_eq!(flat.triangles.len(), 4);
+    assert!(flat.shared.is_empty());
+    // A scene keeps the shared mesh once, with its two visible placements, under the object's transform.
+    let text = format!(
+        r#"{{"materials": {{}}, "background": [1, 1, 1],
+            "objects": [{{"type": "gltf", "file": "{}", "transform": {{"translate": [0, 0, -5]}}}}]}}"#,
+        file.display()
+    );
+    let scene = parse_scene(&text, &dir.join("s.json")).unwrap();
+    assert_eq!(scene.meshes.len(), 1);
+    assert_eq!(scene.meshes[0].triangles.len(), 1, "the mesh placed once stays as it is");
+    assert_eq!(scene.instanced.len(), 1);
+    assert_eq!(scene.instanced[0].copies.len(), 2);
+    let (copies, written) = (built(&scene, Builder::default()), built(&flattened(scene.clone()), Builder::default()));
+    let p = scene.instanced[0].copies[1].world_point(Vec3::new(0.2, 0.3, 0.0));
+    assert!((p - Vec3::new(3.0, 0.6, -5.2)).length() < 1e-5, "{p}: child of the moved, turned parent");
+    for target in [Vec3::new(0.2, 0.3, -5.0), p, Vec3::new(0.2, 0.3, -3.0)] {
+        let ray = Ray::new(target + Vec3::new(0.3, 0.2, 4.0), -Vec3::new(0.3, 0.2, 4.0).normalize());
+        let (a, b) = (copies.intersect(&ray).unwrap(), written.intersect(&ray).unwrap());
+        assert!(close(a.t, b.t), "{target}: {} vs {}", a.t, b.t);
+    }
+    // With instances of its own, the object is one mesh: the shared one is written out.
+    let text = text.replace(r#""transform""#, r#""instances": [{}, {"translate": [9, 0, 0]}], "transform""#);
+    let scene = parse_scene(&text, &dir.join("s.json")).unwrap();
+    assert_eq!(scene.instanced.len(), 1);
+    assert_eq!(scene.instanced[0].mesh.triangles.len(), 4);
+    std::fs::remove_dir_all(&dir).ok();
+}

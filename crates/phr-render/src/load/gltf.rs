@@ -17,7 +17,9 @@
 //! skipped; sparse accessors, morph targets and skins are not supported; texture transforms,
 //! samplers' wrap modes other than repeat, and other texture coordinate sets are ignored.
 
-use super::{check_finite, finish, GltfMaterial, ImageSource, Location, MeshData, SourceCamera, SourceMaterial};
+use super::{
+    check_finite, finish, GltfMaterial, ImageSource, Location, MeshData, SharedMesh, SourceCamera, SourceMaterial,
+};
 use crate::error::LoadError;
 use crate::motion::{AnimatedNode, AnimatedPart, Interpolation, NodeAnimation, Track};
 use ::gltf::accessor::{DataType, Dimensions};
@@ -87,10 +89,12 @@ pub(super) fn parse(path: &Path, base_dir: &Path, bytes: &[u8]) -> Result<MeshDa
         mesh: MeshData::default(),
         groups: HashMap::new(),
         parts: animated.then(Vec::new),
+        placements: Vec::new(),
     };
     for node in scene.nodes() {
         builder.node(&node, Mat4::IDENTITY, 0)?;
     }
+    builder.place_meshes(&document)?;
     if let Some(parts) = builder.parts.take() {
         builder.mesh.animation = builder.animation(&document, parts)?.map(Box::new);
     }
@@ -231,6 +235,9 @@ struct Builder<'a> {
     groups: HashMap<Option<usize>, u32>,
     /// For files with animations: the vertices each node placed, in the node's own space.
     parts: Option<Vec<AnimatedPart>>,
+    /// Without animations: `(mesh, node, world)` for each placement of a mesh, in the
+    /// hierarchy's order, until [`Builder::place_meshes`].
+    placements: Vec<(usize, usize, Mat4)>,
 }
 
 impl Builder<'_> {
@@ -243,18 +250,60 @@ impl Builder<'_> {
             return Err(self.error("node hierarchy too deep (or cyclic)"));
         }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-        if let Some(mesh) = node.mesh() {
-            let mesh_name = mesh.name().map_or_else(|| format!("mesh {}", mesh.index()), |n| format!("mesh `{n}`"));
-            for primitive in mesh.primitives().filter(|p| p.mode() == Mode::Triangles) {
-                let context = format!("{mesh_name}, primitive {}", primitive.index());
-                self.primitive(&primitive, node.index(), world, &context)?;
-            }
+        if let (Some(mesh), None) = (node.mesh(), &self.parts) {
+            self.placements.push((mesh.index(), node.index(), world));
+        } else if let Some(mesh) = node.mesh() {
+            self.mesh_primitives(&mesh, node.index(), world)?;
         }
         if let Some(camera) = node.camera() {
             self.camera(&camera, world)?;
         }
         for child in node.children() {
             self.node(&child, world, depth + 1)?;
+        }
+        Ok(())
+    }
+
+    /// Writes out the meshes of a file without animations: a mesh placed once at its place,
+    /// in the hierarchy's order; a mesh that several nodes place once in its own space, as a
+    /// [`SharedMesh`] with every placement.
+    fn place_meshes(&mut self, document: &Document) -> Result<(), LoadError> {
+        let mut uses = vec![0usize; document.meshes().len()];
+        self.placements.iter().for_each(|&(m, _, _)| uses[m] += 1);
+        let placements = std::mem::take(&mut self.placements);
+        let meshes: Vec<::gltf::Mesh> = document.meshes().collect();
+        for &(m, node, world) in placements.iter().filter(|(m, _, _)| uses[*m] == 1) {
+            self.mesh_primitives(&meshes[m], node, world)?;
+        }
+        for (m, mesh) in meshes.iter().enumerate().filter(|(m, _)| uses[*m] > 1) {
+            // Its triangles alone, in the mesh's space, then the main arrays back.
+            let main = std::mem::take(&mut self.mesh);
+            (self.mesh.groups, self.mesh.group_materials) = (main.groups.clone(), main.group_materials.clone());
+            let first_node = placements.iter().find(|p| p.0 == m).map_or(0, |p| p.1);
+            let result = self.mesh_primitives(mesh, first_node, Mat4::IDENTITY);
+            let piece = std::mem::replace(&mut self.mesh, main);
+            result?;
+            (self.mesh.groups, self.mesh.group_materials) = (piece.groups, piece.group_materials);
+            if piece.triangles.is_empty() {
+                continue;
+            }
+            self.mesh.shared.push(SharedMesh {
+                positions: piece.positions,
+                triangles: piece.triangles,
+                triangle_group: piece.triangle_group,
+                uvs: piece.uvs,
+                placements: placements.iter().filter(|p| p.0 == m).map(|p| p.2).collect(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The triangle primitives of `mesh`, placed by `world`.
+    fn mesh_primitives(&mut self, mesh: &::gltf::Mesh, node: usize, world: Mat4) -> Result<(), LoadError> {
+        let mesh_name = mesh.name().map_or_else(|| format!("mesh {}", mesh.index()), |n| format!("mesh `{n}`"));
+        for primitive in mesh.primitives().filter(|p| p.mode() == Mode::Triangles) {
+            let context = format!("{mesh_name}, primitive {}", primitive.index());
+            self.primitive(&primitive, node, world, &context)?;
         }
         Ok(())
     }

@@ -98,11 +98,59 @@ pub struct MeshData {
     pub uvs: Vec<[[f32; 2]; 3]>,
     /// Keyframed node animations (glTF only), posing ranges of `positions`.
     pub animation: Option<Box<crate::motion::NodeAnimation>>,
+    /// Meshes that several glTF nodes place (files without animations): kept apart, once
+    /// each, by [`load_mesh_keeping_shared`]; [`load_mesh`] writes them out into the arrays
+    /// above ([`MeshData::flatten_shared`]).
+    pub shared: Vec<SharedMesh>,
+}
+
+/// A mesh placed several times: its triangles once, in its own space (groups and texture
+/// coordinates as in [`MeshData`], whose groups they index), and where each copy goes.
+#[derive(Clone, Debug, Default)]
+pub struct SharedMesh {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    pub triangle_group: Vec<u32>,
+    pub uvs: Vec<[[f32; 2]; 3]>,
+    /// Mesh space to the file's space, one per copy.
+    pub placements: Vec<glam::Mat4>,
 }
 
 impl MeshData {
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
+    }
+
+    /// Writes every copy of `shared[i]` out into the main arrays, and removes it.
+    pub fn flatten_shared_mesh(&mut self, path: &Path, i: usize) -> Result<(), LoadError> {
+        let shared = self.shared.remove(i);
+        for placement in &shared.placements {
+            let base = self.positions.len() as u32;
+            for &p in &shared.positions {
+                let p = placement.transform_point3(p);
+                check_finite(path, p, Location::Vertex(self.positions.len()))?;
+                self.positions.push(p);
+            }
+            let first_triangle = self.triangles.len();
+            self.triangles.extend(shared.triangles.iter().map(|t| t.map(|v| v + base)));
+            self.triangle_group.extend_from_slice(&shared.triangle_group);
+            if !(self.uvs.is_empty() && shared.uvs.is_empty()) {
+                self.uvs.resize(first_triangle, [[0.0; 2]; 3]);
+                match shared.uvs.len() {
+                    0 => self.uvs.resize(self.triangles.len(), [[0.0; 2]; 3]),
+                    _ => self.uvs.extend_from_slice(&shared.uvs),
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes every shared mesh out ([`MeshData::flatten_shared_mesh`]).
+    pub fn flatten_shared(&mut self, path: &Path) -> Result<(), LoadError> {
+        while !self.shared.is_empty() {
+            self.flatten_shared_mesh(path, 0)?;
+        }
+        Ok(())
     }
 }
 
@@ -141,14 +189,28 @@ impl Format {
 ///
 /// Every error names the file, and the line for text formats.
 pub fn load_mesh(path: &Path) -> Result<MeshData, LoadError> {
+    let mut mesh = load_mesh_keeping_shared(path)?;
+    mesh.flatten_shared(path)?;
+    Ok(mesh)
+}
+
+/// [`load_mesh`], with the meshes several glTF nodes place kept apart, once each
+/// ([`MeshData::shared`]): what a scene instances instead of copying.
+pub fn load_mesh_keeping_shared(path: &Path) -> Result<MeshData, LoadError> {
     detect_format(path)?;
-    parse_mesh(path, &input::read_file(path, "the mesh file")?)
+    parse_mesh_keeping_shared(path, &input::read_file(path, "the mesh file")?)
 }
 
 /// [`load_mesh`] on the file's content, already read: `path` names the format (by its
 /// extension), the file in errors, and the folder its MTL and buffer files are looked up in.
 /// What the loaders' fuzz tests call.
 pub fn parse_mesh(path: &Path, bytes: &[u8]) -> Result<MeshData, LoadError> {
+    let mut mesh = parse_mesh_keeping_shared(path, bytes)?;
+    mesh.flatten_shared(path)?;
+    Ok(mesh)
+}
+
+fn parse_mesh_keeping_shared(path: &Path, bytes: &[u8]) -> Result<MeshData, LoadError> {
     let (format, gzipped) = detect_format(path)?;
     let inflated;
     let bytes = if gzipped {
@@ -209,8 +271,18 @@ pub(crate) fn check_finite(path: &Path, p: Vec3, at: Location) -> Result<(), Loa
 /// position finite, one group per triangle. Parsers report problems with line numbers as they
 /// go; this catches whatever they could not (and guards the invariants the renderer relies on).
 pub(crate) fn finish(path: &Path, mesh: MeshData) -> Result<MeshData, LoadError> {
-    if mesh.triangles.is_empty() {
+    if mesh.triangles.is_empty() && mesh.shared.is_empty() {
         return Err(LoadError::new(path, "no triangles"));
+    }
+    for shared in &mesh.shared {
+        let n = shared.positions.len();
+        let ok = shared.triangles.iter().flatten().all(|&v| (v as usize) < n)
+            && shared.triangle_group.len() == shared.triangles.len()
+            && (shared.uvs.is_empty() || shared.uvs.len() == shared.triangles.len())
+            && shared.triangle_group.iter().all(|&g| (g as usize) < mesh.groups.len());
+        if !ok {
+            return Err(LoadError::new(path, "internal error: inconsistent shared mesh"));
+        }
     }
     if let Some(i) = mesh.positions.iter().position(|p| !p.is_finite()) {
         return check_finite(path, mesh.positions[i], Location::Vertex(i)).map(|_| mesh);

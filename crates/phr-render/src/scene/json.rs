@@ -17,7 +17,7 @@ use super::materials::MtlMapping;
 use super::{Background, InstancedMesh, Mesh, RenderSettings, Scene, SphereObject};
 use crate::camera::CameraDesc;
 use crate::error::LoadError;
-use crate::load::{load_mesh, MeshData};
+use crate::load::{load_mesh_keeping_shared, MeshData};
 use crate::material::Material;
 use crate::motion::{Animation, AnimationTarget, Motion, ObjectAnimation};
 use glam::{Affine3A, Mat4, Quat, Vec2, Vec3};
@@ -321,7 +321,7 @@ pub fn parse_scene(text: &str, path: &Path) -> Result<Scene, LoadError> {
     let value: serde_json::Value = serde_json::from_str(text).map_err(syntax)?;
     check_keys(&value).map_err(|message| LoadError::new(path, message))?;
     let file: SceneFile = serde_json::from_str(text).map_err(syntax)?;
-    SceneBuilder { path, scene: Scene::default() }.build(file)
+    SceneBuilder { path, scene: Scene::default(), keep_shared: true }.build(file)
 }
 
 /// The keys each part of a scene file may have. An unknown key is an error, not ignored: a
@@ -387,6 +387,8 @@ const MIN_PERIOD: f32 = 1e-6;
 struct SceneBuilder<'a> {
     path: &'a Path,
     scene: Scene,
+    /// The object being added may keep a glTF's shared meshes instanced.
+    keep_shared: bool,
 }
 
 impl SceneBuilder<'_> {
@@ -420,6 +422,8 @@ impl SceneBuilder<'_> {
         }
         for (i, entry) in file.objects.iter().enumerate() {
             let (meshes, spheres) = (self.scene.meshes.len(), self.scene.spheres.len());
+            // An object placed by `instances` is one mesh: a glTF's shared meshes are written out.
+            self.keep_shared = entry.instances.is_none();
             self.add_object(i, &entry.object)?;
             if let Some(animate) = &entry.animate {
                 self.animate(i, animate, meshes, spheres)?;
@@ -594,9 +598,12 @@ impl SceneBuilder<'_> {
             }
             ObjectFile::Mesh { file, material, transform, .. } => {
                 let material = self.material(i, material)?;
-                let data = self.load(file, transform)?;
-                let n = data.triangles.len();
-                self.push_mesh(file, data.positions, data.triangles, vec![material; n]);
+                let mut data = self.load(file, transform)?;
+                // One untextured material: no texture coordinates needed.
+                data.uvs.clear();
+                data.shared.iter_mut().for_each(|s| s.uvs.clear());
+                let group_material = vec![material; data.groups.len()];
+                self.push_grouped(file, data, &group_material)?;
             }
             ObjectFile::ObjMtl { file, materials, material, transform, mtl_mapping } => {
                 let fallback = material.as_deref().map(|m| self.material(i, m)).transpose()?;
@@ -620,7 +627,7 @@ impl SceneBuilder<'_> {
                         }
                     })
                     .collect::<Result<Vec<u32>, LoadError>>()?;
-                self.push_grouped(file, data, &group_material);
+                self.push_grouped(file, data, &group_material)?;
             }
             ObjectFile::Gltf { file, transform } => {
                 let mut data = self.load(file, transform)?;
@@ -639,7 +646,7 @@ impl SceneBuilder<'_> {
                         CameraDesc { position: c.position, look_at: c.look_at, up: c.up, vfov_degrees: c.vfov_degrees };
                     self.scene.views.push((c.name.clone(), desc));
                 }
-                self.push_grouped(file, data, &group_material);
+                self.push_grouped(file, data, &group_material)?;
             }
         }
         Ok(())
@@ -670,19 +677,27 @@ impl SceneBuilder<'_> {
 
     fn load(&self, file: &str, transform: &Option<TransformFile>) -> Result<MeshData, LoadError> {
         let path = resolve_path(file, self.path)?;
-        let mut data = load_mesh(&path)?;
+        let mut data = load_mesh_keeping_shared(&path)?;
+        if !self.keep_shared {
+            data.flatten_shared(&path)?;
+        }
         if let Some(t) = transform {
             let m = t.matrix();
             data.positions.iter_mut().for_each(|p| *p = m.transform_point3(*p));
+            data.shared.iter_mut().flat_map(|s| &mut s.placements).for_each(|p| *p = m * *p);
         }
         Ok(data)
     }
 
-    fn push_grouped(&mut self, name: &str, data: MeshData, group_material: &[u32]) {
+    /// Adds `data`'s triangles as a mesh, and its shared meshes instanced
+    /// ([`Scene::add_shared_meshes`]).
+    fn push_grouped(&mut self, name: &str, mut data: MeshData, group_material: &[u32]) -> Result<(), LoadError> {
+        self.scene.add_shared_meshes(self.path, name, &mut data, group_material)?;
         let materials = data.triangle_group.iter().map(|&g| group_material[g as usize]).collect();
         let uvs = data.uvs.iter().map(|t| t.map(Vec2::from)).collect();
         self.push_mesh(name, data.positions, data.triangles, materials);
         self.scene.meshes.last_mut().expect("pushed").uvs = uvs;
+        Ok(())
     }
 
     fn push_mesh(&mut self, name: &str, positions: Vec<Vec3>, triangles: Vec<[u32; 3]>, triangle_material: Vec<u32>) {

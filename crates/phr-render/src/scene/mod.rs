@@ -238,6 +238,49 @@ impl Scene {
         Ok((self.textures.len() - 1) as u32)
     }
 
+    /// Places the meshes `data` keeps apart because several glTF nodes place them
+    /// ([`crate::load::MeshData::shared`]) as [`InstancedMesh`]es, their groups given
+    /// materials by `group_material`. Those that emit light are written out into `data`
+    /// instead (light sampling finds emitting triangles where they are). Placements that
+    /// cannot be inverted (a node scaled to zero, which hides the mesh) are left out.
+    pub fn add_shared_meshes(
+        &mut self,
+        path: &std::path::Path,
+        name: &str,
+        data: &mut crate::load::MeshData,
+        group_material: &[u32],
+    ) -> Result<(), crate::error::LoadError> {
+        let mut i = 0;
+        while i < data.shared.len() {
+            let materials = &self.materials;
+            let emits = data.shared[i]
+                .triangle_group
+                .iter()
+                .any(|&g| materials[group_material[g as usize] as usize].is_emissive());
+            if emits {
+                data.flatten_shared_mesh(path, i)?;
+            } else {
+                i += 1;
+            }
+        }
+        for shared in std::mem::take(&mut data.shared) {
+            let copies: Vec<Instance> =
+                shared.placements.iter().filter_map(|&m| Instance::new(glam::Affine3A::from_mat4(m))).collect();
+            if copies.is_empty() {
+                continue;
+            }
+            let mesh = Mesh {
+                name: format!("{name} (shared mesh)"),
+                positions: shared.positions,
+                triangles: shared.triangles,
+                triangle_material: shared.triangle_group.iter().map(|&g| group_material[g as usize]).collect(),
+                uvs: shared.uvs.iter().map(|t| t.map(Vec2::from)).collect(),
+            };
+            self.instanced.push(InstancedMesh { mesh, copies });
+        }
+        Ok(())
+    }
+
     pub fn material_index(&self, name: &str) -> Option<u32> {
         self.material_names.iter().position(|n| n == name).map(|i| i as u32)
     }
@@ -354,7 +397,7 @@ pub fn load_scene(path: &std::path::Path) -> Result<Scene, crate::error::LoadErr
     if name.ends_with(".json") {
         return json::load_scene_file(path);
     }
-    let data = crate::load::load_mesh(path)?;
+    let mut data = crate::load::load_mesh_keeping_shared(path)?;
     let mut scene = Scene {
         background: Background::Gradient { bottom: Vec3::ONE, top: Vec3::new(0.5, 0.7, 1.0) },
         ..Scene::default()
@@ -368,8 +411,9 @@ pub fn load_scene(path: &std::path::Path) -> Result<Scene, crate::error::LoadErr
     for c in &data.cameras {
         scene.views.push((c.name.clone(), c.into()));
     }
-    let triangle_material = data.triangle_group.iter().map(|&g| group_material[g as usize]).collect();
     let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    scene.add_shared_meshes(path, &file_name, &mut data, &group_material)?;
+    let triangle_material = data.triangle_group.iter().map(|&g| group_material[g as usize]).collect();
     scene.meshes.push(Mesh {
         name: file_name,
         positions: data.positions,
