@@ -59,7 +59,7 @@ impl Scene {
 
     #[getter]
     fn triangle_count(&self) -> usize {
-        self.scene.triangle_count()
+        self.scene.triangle_count() + self.scene.instanced_triangle_count().0 as usize
     }
 
     #[getter]
@@ -81,12 +81,14 @@ impl Scene {
 
     /// Every triangle of the scene's meshes as `(vertices, indices)`: float32 of shape
     /// (n, 3) and uint32 of shape (m, 3), ready for `phr.Bvh` (meshes in file order, their
-    /// vertices concatenated).
+    /// vertices concatenated; then each copy of a mesh placed many times, in the world).
     #[allow(clippy::type_complexity)]
     fn triangles<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<u32>>)> {
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
-        for mesh in &self.scene.meshes {
+        let mut flat = self.scene.clone();
+        flat.flatten_instanced();
+        for mesh in &flat.meshes {
             let base = (vertices.len() / 3) as u32;
             vertices.extend(mesh.positions.iter().flat_map(|p| p.to_array()));
             indices.extend(mesh.triangles.iter().flat_map(|t| t.map(|i| base + i)));

@@ -58,13 +58,8 @@ fn instanced() -> Scene {
 
 /// `scene` with every copy written out as a mesh of its own, in the world.
 fn flattened(mut scene: Scene) -> Scene {
-    for copied in std::mem::take(&mut scene.instanced) {
-        for copy in &copied.copies {
-            let mut mesh = copied.mesh.clone();
-            mesh.positions.iter_mut().for_each(|p| *p = copy.world_point(*p));
-            scene.meshes.push(mesh);
-        }
-    }
+    scene.flatten_instanced();
+    assert!(scene.instanced.is_empty());
     scene
 }
 
@@ -278,6 +273,14 @@ fn a_gltf_mesh_that_several_nodes_place_is_instanced() {
         let (a, b) = (copies.intersect(&ray).unwrap(), written.intersect(&ray).unwrap());
         assert!(close(a.t, b.t), "{target}: {} vs {}", a.t, b.t);
     }
+    // A moving object is one mesh too: the shared one is written out, so it moves with the rest.
+    let moving = text.replace(
+        r#""transform""#,
+        r#""animate": {"type": "oscillate", "amplitude": [1, 0, 0], "period": 2}, "transform""#,
+    );
+    let scene = parse_scene(&moving, &dir.join("s.json")).unwrap();
+    assert!(scene.instanced.is_empty());
+    assert_eq!(scene.meshes[0].triangles.len(), 4);
     // With instances of its own, the object is one mesh: the shared one is written out.
     let text = text.replace(r#""transform""#, r#""instances": [{}, {"translate": [9, 0, 0]}], "transform""#);
     let scene = parse_scene(&text, &dir.join("s.json")).unwrap();

@@ -131,6 +131,8 @@ fn attach_motion(scene: &mut Scene, motion: Motion) {
             displacement: -Vec3::Y,
         },
     };
+    // Every vertex moves, copies of instanced meshes included.
+    scene.flatten_instanced();
     scene.animations = (0..scene.meshes.len())
         .map(|m| ObjectAnimation {
             target: AnimationTarget::Mesh(m),

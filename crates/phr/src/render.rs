@@ -238,7 +238,6 @@ fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
     path.with_file_name(format!("{stem}{suffix}{ext}"))
 }
 
-/// "phr-fast build 12.3 ms (LBVH 4.1 + PHR 8.2, Σ|cut| 185317)" or "lbvh build 4.0 ms".
 /// What the copies of meshes placed many times add to a build, after its description
 /// (nothing when there are none).
 pub fn describe_copies(scene: &phr_render::scene::Scene, time: std::time::Duration) -> String {
@@ -254,6 +253,7 @@ pub fn describe_copies(scene: &phr_render::scene::Scene, time: std::time::Durati
     )
 }
 
+/// "phr-fast build 12.3 ms (LBVH 4.1 + PHR 8.2, Σ|cut| 185317)" or "lbvh build 4.0 ms".
 pub fn describe_build(builder: &Builder, report: &BuildReport) -> String {
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
     match report.phr {

@@ -423,7 +423,8 @@ impl SceneBuilder<'_> {
         for (i, entry) in file.objects.iter().enumerate() {
             let (meshes, spheres) = (self.scene.meshes.len(), self.scene.spheres.len());
             // An object placed by `instances` is one mesh: a glTF's shared meshes are written out.
-            self.keep_shared = entry.instances.is_none();
+            // So is a moving object: its motion moves its one mesh.
+            self.keep_shared = entry.instances.is_none() && entry.animate.is_none();
             self.add_object(i, &entry.object)?;
             if let Some(animate) = &entry.animate {
                 self.animate(i, animate, meshes, spheres)?;

@@ -238,6 +238,19 @@ impl Scene {
         Ok((self.textures.len() - 1) as u32)
     }
 
+    /// Writes every copy of [`Scene::instanced`] out as a mesh of its own, in the world: for
+    /// what needs each triangle where it is (moving every vertex, exporting triangles).
+    pub fn flatten_instanced(&mut self) {
+        for copied in std::mem::take(&mut self.instanced) {
+            for (k, copy) in copied.copies.iter().enumerate() {
+                let mut mesh = copied.mesh.clone();
+                mesh.name = format!("{} #{k}", copied.mesh.name);
+                mesh.positions.iter_mut().for_each(|p| *p = copy.world_point(*p));
+                self.meshes.push(mesh);
+            }
+        }
+    }
+
     /// Places the meshes `data` keeps apart because several glTF nodes place them
     /// ([`crate::load::MeshData::shared`]) as [`InstancedMesh`]es, their groups given
     /// materials by `group_material`. Those that emit light are written out into `data`
