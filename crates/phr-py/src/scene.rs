@@ -86,9 +86,9 @@ impl Scene {
     fn triangles<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyArray2<f32>>, Bound<'py, PyArray2<u32>>)> {
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
-        let mut flat = self.scene.clone();
-        flat.flatten_instanced();
-        for mesh in &flat.meshes {
+        let copies = self.scene.instanced.iter().flat_map(|i| i.written_out());
+        for mesh in self.scene.meshes.iter().map(std::borrow::Cow::Borrowed).chain(copies.map(std::borrow::Cow::Owned))
+        {
             let base = (vertices.len() / 3) as u32;
             vertices.extend(mesh.positions.iter().flat_map(|p| p.to_array()));
             indices.extend(mesh.triangles.iter().flat_map(|t| t.map(|i| base + i)));

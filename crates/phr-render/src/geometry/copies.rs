@@ -27,7 +27,6 @@ struct CopiedMesh {
     triangle_uv: Vec<[Vec2; 3]>,
     /// Its wide tree and packed triangles, in object space (built by [`Copies::build`]).
     part: Part,
-    built: bool,
 }
 
 /// Every mesh placed many times, and the top-level tree over their copies.
@@ -36,7 +35,8 @@ pub(super) struct Copies {
     meshes: Vec<CopiedMesh>,
     /// The mesh of each copy; copy `i` is instance `i` of `top`.
     mesh_of: Vec<u32>,
-    /// The copies' placements until [`Copies::build`] hands them to `top`.
+    /// The copies' placements until [`Copies::build`] builds the meshes' trees and hands
+    /// these to `top` (empty: built, or no copies).
     placements: Vec<Instance>,
     top: TopLevel,
 }
@@ -51,7 +51,6 @@ impl Copies {
                 triangle_material: mesh.triangle_material.clone(),
                 triangle_uv: mesh.uvs.clone(),
                 part: Part::default(),
-                built: false,
             });
             copies.mesh_of.extend(std::iter::repeat_n(m as u32, instanced.copies.len()));
             copies.placements.extend_from_slice(&instanced.copies);
@@ -68,28 +67,25 @@ impl Copies {
         self.mesh_of.len()
     }
 
-    /// Builds the tree of every mesh that has none yet with `builder`, then the top level over
-    /// the copies. Returns whether anything was built.
-    pub fn build(&mut self, builder: &Builder) -> bool {
-        let mut built = false;
-        for mesh in self.meshes.iter_mut().filter(|m| !m.built) {
+    /// Builds the tree of every mesh with `builder`, then the top level over the copies, the
+    /// first time; later calls do nothing.
+    pub fn build(&mut self, builder: &Builder) {
+        if self.placements.is_empty() {
+            return;
+        }
+        for mesh in &mut self.meshes {
             let boxes: Vec<Aabb> = mesh.triangles.iter().map(|&[a, b, c]| triangle_bounds(a, b, c)).collect();
             let bvh = builder.build_with_triangles(&boxes, &mesh.triangles);
             mesh.part.wide.rebuild(&bvh);
             mesh.part.packed.repack(&mesh.part.wide.prim_indices, &mesh.triangles);
-            mesh.built = true;
-            built = true;
         }
-        if built && !self.placements.is_empty() {
-            let boxes: Vec<Aabb> = self
-                .mesh_of
-                .iter()
-                .zip(&self.placements)
-                .map(|(&m, placement)| self.meshes[m as usize].part.bounds_placed(placement))
-                .collect();
-            self.top.rebuild(std::mem::take(&mut self.placements), &boxes);
-        }
-        built
+        let boxes: Vec<Aabb> = self
+            .mesh_of
+            .iter()
+            .zip(&self.placements)
+            .map(|(&m, placement)| self.meshes[m as usize].part.bounds_placed(placement))
+            .collect();
+        self.top.rebuild(std::mem::take(&mut self.placements), &boxes);
     }
 
     /// The mesh tree and the placement of copy `copy`.
@@ -125,7 +121,7 @@ impl Copies {
     /// The texture coordinates of copy `copy`'s hit.
     pub fn uv(&self, copy: u32, hit: &Hit) -> Option<Vec2> {
         let mesh = &self.meshes[self.mesh_of[copy as usize] as usize];
-        mesh.triangle_uv.get(hit.prim as usize).map(|[a, b, c]| *a + (*b - *a) * hit.u + (*c - *a) * hit.v)
+        mesh.triangle_uv.get(hit.prim as usize).map(|corners| super::interpolate_uv(corners, hit))
     }
 
     /// Bytes held: the meshes' triangles (with materials and texture coordinates) and what

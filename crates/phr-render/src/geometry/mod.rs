@@ -737,10 +737,7 @@ impl Geometry {
         if hit.part & COPY != 0 {
             return self.copies.uv(hit.part & !COPY, hit).unwrap_or(Vec2::ZERO);
         }
-        match self.triangle_uv.get(hit.prim as usize) {
-            Some([a, b, c]) => *a + (*b - *a) * hit.u + (*c - *a) * hit.v,
-            None => Vec2::ZERO,
-        }
+        self.triangle_uv.get(hit.prim as usize).map_or(Vec2::ZERO, |corners| interpolate_uv(corners, hit))
     }
 
     /// Position, unit normal, material and relative offset of a hit in `part`'s object space
@@ -769,6 +766,12 @@ impl Geometry {
             (p, s.sphere.normal(p).normalize_or(Vec3::Y), s.material, SPHERE_OFFSET)
         }
     }
+}
+
+/// The texture coordinates at a triangle hit, from its corners'.
+#[inline]
+fn interpolate_uv([a, b, c]: &[Vec2; 3], hit: &Hit) -> Vec2 {
+    *a + (*b - *a) * hit.u + (*c - *a) * hit.v
 }
 
 /// The point at barycentrics `(u, v)` of the triangle `v0, e1, e2` and its unit normal

@@ -276,26 +276,34 @@ impl Builder<'_> {
             self.mesh_primitives(&meshes[m], node, world)?;
         }
         for (m, mesh) in meshes.iter().enumerate().filter(|(m, _)| uses[*m] > 1) {
-            // Its triangles alone, in the mesh's space, then the main arrays back.
-            let main = std::mem::take(&mut self.mesh);
-            (self.mesh.groups, self.mesh.group_materials) = (main.groups.clone(), main.group_materials.clone());
-            let first_node = placements.iter().find(|p| p.0 == m).map_or(0, |p| p.1);
-            let result = self.mesh_primitives(mesh, first_node, Mat4::IDENTITY);
-            let piece = std::mem::replace(&mut self.mesh, main);
+            let mine: Vec<&(usize, usize, Mat4)> = placements.iter().filter(|p| p.0 == m).collect();
+            // Its triangles alone, in the mesh's space (the groups stay shared), then the
+            // main triangles back.
+            let main = self.take_triangles();
+            let result = self.mesh_primitives(mesh, mine[0].1, Mat4::IDENTITY);
+            let mut piece = self.take_triangles();
+            (self.mesh.positions, self.mesh.triangles, self.mesh.triangle_group, self.mesh.uvs) =
+                (main.positions, main.triangles, main.triangle_group, main.uvs);
             result?;
-            (self.mesh.groups, self.mesh.group_materials) = (piece.groups, piece.group_materials);
-            if piece.triangles.is_empty() {
-                continue;
+            if !piece.triangles.is_empty() {
+                piece.placements = mine.iter().map(|p| p.2).collect();
+                self.mesh.shared.push(piece);
             }
-            self.mesh.shared.push(SharedMesh {
-                positions: piece.positions,
-                triangles: piece.triangles,
-                triangle_group: piece.triangle_group,
-                uvs: piece.uvs,
-                placements: placements.iter().filter(|p| p.0 == m).map(|p| p.2).collect(),
-            });
         }
         Ok(())
+    }
+
+    /// Moves the triangles read so far (positions, triangles, groups, texture coordinates)
+    /// out of the mesh being built.
+    fn take_triangles(&mut self) -> SharedMesh {
+        let mesh = &mut self.mesh;
+        SharedMesh {
+            positions: std::mem::take(&mut mesh.positions),
+            triangles: std::mem::take(&mut mesh.triangles),
+            triangle_group: std::mem::take(&mut mesh.triangle_group),
+            uvs: std::mem::take(&mut mesh.uvs),
+            placements: Vec::new(),
+        }
     }
 
     /// The triangle primitives of `mesh`, placed by `world`.

@@ -543,25 +543,19 @@ impl SceneBuilder<'_> {
                     .ok_or_else(|| bad(format!("transform {k} is not finite or cannot be inverted")))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let mesh = merge_meshes(self.scene.meshes.drain(meshes..));
-        let emits = mesh.triangle_material.iter().any(|&m| self.scene.materials[m as usize].is_emissive());
+        let instanced = InstancedMesh { mesh: merge_meshes(self.scene.meshes.drain(meshes..)), copies };
+        let emits = instanced.mesh.triangle_material.iter().any(|&m| self.scene.materials[m as usize].is_emissive());
         if !emits {
-            self.scene.instanced.push(InstancedMesh { mesh, copies });
+            self.scene.instanced.push(instanced);
             return Ok(());
         }
-        if mesh.triangles.len().saturating_mul(copies.len()) > MAX_COPIED_TRIANGLES {
+        let (copies, triangles) = (instanced.copies.len(), instanced.mesh.triangles.len());
+        if triangles.saturating_mul(copies) > MAX_COPIED_TRIANGLES {
             return Err(bad(format!(
-                "{} copies of {} emitting triangles exceed {MAX_COPIED_TRIANGLES} (emitters are copied, not instanced)",
-                copies.len(),
-                mesh.triangles.len()
+                "{copies} copies of {triangles} emitting triangles exceed {MAX_COPIED_TRIANGLES} (emitters are copied, not instanced)"
             )));
         }
-        for (k, copy) in copies.iter().enumerate() {
-            let positions = mesh.positions.iter().map(|&p| copy.world_point(p)).collect();
-            let name = format!("{} #{k}", mesh.name);
-            self.push_mesh(&name, positions, mesh.triangles.clone(), mesh.triangle_material.clone());
-            self.scene.meshes.last_mut().expect("pushed").uvs = mesh.uvs.clone();
-        }
+        self.scene.meshes.extend(instanced.written_out());
         Ok(())
     }
 

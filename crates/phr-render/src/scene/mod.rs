@@ -78,6 +78,15 @@ pub struct InstancedMesh {
 }
 
 impl InstancedMesh {
+    /// Each copy as a mesh of its own, in the world (named `NAME #k`).
+    pub fn written_out(&self) -> impl Iterator<Item = Mesh> + '_ {
+        self.copies.iter().enumerate().map(|(k, copy)| Mesh {
+            name: format!("{} #{k}", self.mesh.name),
+            positions: self.mesh.positions.iter().map(|&p| copy.world_point(p)).collect(),
+            ..self.mesh.clone()
+        })
+    }
+
     /// World bounds of all its copies.
     pub fn bounds(&self) -> phr_bvh::Aabb {
         let object = self.mesh.bounds();
@@ -242,12 +251,7 @@ impl Scene {
     /// what needs each triangle where it is (moving every vertex, exporting triangles).
     pub fn flatten_instanced(&mut self) {
         for copied in std::mem::take(&mut self.instanced) {
-            for (k, copy) in copied.copies.iter().enumerate() {
-                let mut mesh = copied.mesh.clone();
-                mesh.name = format!("{} #{k}", copied.mesh.name);
-                mesh.positions.iter_mut().for_each(|p| *p = copy.world_point(*p));
-                self.meshes.push(mesh);
-            }
+            self.meshes.extend(copied.written_out());
         }
     }
 
