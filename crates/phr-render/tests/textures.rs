@@ -150,3 +150,55 @@ fn one_file_is_one_texture_and_a_missing_one_is_named() {
     let error = load_scene(&write_scene(&dir, "no_such.png", false)).unwrap_err().to_string();
     assert!(error.contains("no_such.png") && error.contains("material \"a\""), "{error}");
 }
+
+/// The same quad as an ASCII PLY with `s t` per vertex, drawn by a `mesh` object whose scene
+/// material names the texture (times an albedo of 0.5).
+fn write_ply_scene(dir: &Path, object: &str) -> PathBuf {
+    write_scene(dir, "checker.png", false);
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+               property float s\nproperty float t\nelement face 1\nproperty list uchar int vertex_indices\n\
+               end_header\n-1 -1 0 0 0\n1 -1 0 1 0\n1 1 0 1 1\n-1 1 0 0 1\n4 0 1 2 3\n";
+    std::fs::write(dir.join("quad.ply"), ply).unwrap();
+    let scene = format!(
+        r#"{{
+      "width": 64, "height": 64, "spp": 1, "max_depth": 4, "background": [1, 1, 1],
+      "camera": {{ "position": [0, 0, 2], "look_at": [0, 0, 0], "vfov": 40 }},
+      "materials": {{ "checker": {{ "type": "lambertian", "albedo": [0.5, 0.5, 0.5], "texture": "checker.png" }} }},
+      "objects": [ {object} ]
+    }}"#
+    );
+    std::fs::write(dir.join("ply_scene.json"), scene).unwrap();
+    dir.join("ply_scene.json")
+}
+
+#[test]
+fn a_ply_quad_with_texture_coordinates_shows_a_scene_materials_texels() {
+    let dir = folder("ply");
+    check_texels(&write_ply_scene(&dir, r#"{ "type": "mesh", "file": "quad.ply", "material": "checker" }"#), 0.5);
+}
+
+/// A textured scene material on something without texture coordinates is refused, naming
+/// the material; so is a texture that is not there.
+#[test]
+fn a_textured_material_needs_texture_coordinates_and_its_image() {
+    let dir = folder("no-uv");
+    let cases = [
+        (r#"{ "type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "checker" }"#, "a sphere"),
+        (r#"{ "type": "quad", "Q": [0, 0, 0], "u": [1, 0, 0], "v": [0, 1, 0], "material": "checker" }"#, "a quad"),
+        (r#"{ "type": "mesh", "file": "plain.obj", "material": "checker" }"#, "plain.obj has no texture coordinates"),
+        (
+            r#"{ "type": "obj_mtl", "file": "plain.obj", "material": "checker" }"#,
+            "plain.obj has no texture coordinates",
+        ),
+    ];
+    for (object, expected) in cases {
+        let scene = write_ply_scene(&dir, object);
+        std::fs::write(dir.join("plain.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        let error = load_scene(&scene).unwrap_err().to_string();
+        assert!(error.contains("material \"checker\" has a texture") && error.contains(expected), "{error}");
+    }
+    let scene = write_ply_scene(&dir, r#"{ "type": "mesh", "file": "quad.ply", "material": "checker" }"#);
+    std::fs::remove_file(dir.join("checker.png")).unwrap();
+    let error = load_scene(&scene).unwrap_err().to_string();
+    assert!(error.contains("checker.png") && error.contains("material \"checker\""), "{error}");
+}

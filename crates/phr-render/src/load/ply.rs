@@ -1,12 +1,15 @@
 //! PLY reader (`ascii`, `binary_little_endian`, `binary_big_endian`), written by hand.
 //!
-//! Reads `element vertex` (properties `x`, `y`, `z` of any scalar type; other properties,
-//! lists included, are skipped) and `element face` (the list property `vertex_indices` or
-//! `vertex_index`; polygons are fan-triangulated). Other elements are skipped: by line in
-//! ASCII files, by size in binary ones. All triangles go to one group, `default`.
+//! Reads `element vertex` (properties `x`, `y`, `z` of any scalar type, and texture
+//! coordinates when a pair of them is there: `u`/`v`, `s`/`t`, `texture_u`/`texture_v` or
+//! `texture_s`/`texture_t`, with `v = 0` at the image's bottom as in OBJ files; other
+//! properties, lists included, are skipped) and `element face` (the list property
+//! `vertex_indices` or `vertex_index`; polygons are fan-triangulated). Other elements are
+//! skipped: by line in ASCII files, by size in binary ones. All triangles go to one group,
+//! `default`.
 //!
-//! Limits: ASCII files must hold one element per line (as every writer does); no normals,
-//! colours or texture coordinates are returned.
+//! Limits: ASCII files must hold one element per line (as every writer does); no normals or
+//! colours are returned.
 
 use super::{capped_capacity, check_finite, finish, Location, MeshData, SourceMaterial};
 use crate::error::LoadError;
@@ -25,12 +28,19 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<MeshData, LoadError> {
         group_materials: vec![SourceMaterial::None],
         ..MeshData::default()
     };
+    let mut vertices = Vertices { mesh: &mut mesh, uvs: Vec::new() };
     match header.encoding {
-        Encoding::Ascii => read_ascii(path, &header, &layout, body, &mut mesh)?,
+        Encoding::Ascii => read_ascii(path, &header, &layout, body, &mut vertices)?,
         Encoding::Binary { big_endian } => {
             let mut reader = BinaryReader { data: body, pos: 0, big_endian };
-            read_binary(path, &header, &layout, &mut reader, &mut mesh)?;
+            read_binary(path, &header, &layout, &mut reader, &mut vertices)?;
         }
+    }
+    let uvs = vertices.uvs;
+    if layout.has_uv {
+        // Face indices were checked against the header's vertex count, which the vertex
+        // element's reading met in full.
+        mesh.uvs = mesh.triangles.iter().map(|t| t.map(|v| uvs[v as usize])).collect();
     }
     mesh.triangle_group = vec![0; mesh.triangles.len()];
     finish(path, mesh)
@@ -218,12 +228,26 @@ fn parse_property(mut tokens: SplitAsciiWhitespace) -> Option<Property> {
 // ---------------------------------------------------------------------------------------
 // What to read from which element
 
+/// What a vertex's reading fills: the mesh's positions and the vertices' texture
+/// coordinates (empty when the file has none).
+struct Vertices<'m> {
+    mesh: &'m mut MeshData,
+    uvs: Vec<[f32; 2]>,
+}
+
+/// Which value of a vertex a property holds: [`U`] and [`V`] after the coordinates 0..3.
+const U: usize = 3;
+const V: usize = 4;
+
 /// The role of each property of the vertex and face elements.
 struct Layout {
     /// Index of the `vertex` element in `Header::elements`.
     vertex: usize,
-    /// For each vertex property, which coordinate (0..3) it is, if any.
+    /// For each vertex property, which value it is, if any: a coordinate (0..3), [`U`] or
+    /// [`V`].
     vertex_axes: Vec<Option<usize>>,
+    /// Whether the vertices have texture coordinates (both of a pair).
+    has_uv: bool,
     /// Index of the `face` element and of its index list property.
     face: Option<(usize, usize)>,
     vertex_count: usize,
@@ -239,11 +263,25 @@ impl Layout {
             ("x", PropertyType::Scalar(_)) => Some(0),
             ("y", PropertyType::Scalar(_)) => Some(1),
             ("z", PropertyType::Scalar(_)) => Some(2),
+            ("u" | "s" | "texture_u" | "texture_s", PropertyType::Scalar(_)) => Some(U),
+            ("v" | "t" | "texture_v" | "texture_t", PropertyType::Scalar(_)) => Some(V),
             _ => None,
         };
-        let vertex_axes: Vec<_> = element.properties.iter().map(axis).collect();
+        let mut vertex_axes: Vec<_> = element.properties.iter().map(axis).collect();
         if (0..3).any(|a| !vertex_axes.contains(&Some(a))) {
             return Err(header_error(element.line, "vertex element needs scalar properties x, y and z"));
+        }
+        for value in [U, V] {
+            if vertex_axes.iter().filter(|&&a| a == Some(value)).count() > 1 {
+                let name = if value == U { "u" } else { "v" };
+                let message = format!("vertex element has more than one texture coordinate {name}");
+                return Err(header_error(element.line, &message));
+            }
+        }
+        let has_uv = vertex_axes.contains(&Some(U)) && vertex_axes.contains(&Some(V));
+        if !has_uv {
+            // One of a pair alone is no texture coordinate: skipped like any other property.
+            vertex_axes.iter_mut().filter(|a| a.is_some_and(|a| a >= U)).for_each(|a| *a = None);
         }
         if element.count > u32::MAX as usize {
             return Err(header_error(element.line, "too many vertices"));
@@ -252,7 +290,7 @@ impl Layout {
             None => None,
             Some(f) => Some((f, Self::index_list(path, &header.elements[f])?)),
         };
-        Ok(Self { vertex, vertex_axes, face, vertex_count: element.count })
+        Ok(Self { vertex, vertex_axes, has_uv, face, vertex_count: element.count })
     }
 
     /// The `vertex_indices` (or `vertex_index`) list property of the face element.
@@ -325,14 +363,14 @@ fn read_ascii(
     header: &Header,
     layout: &Layout,
     body: &[u8],
-    mesh: &mut MeshData,
+    vertices: &mut Vertices,
 ) -> Result<(), LoadError> {
     let text = String::from_utf8_lossy(body);
     let mut lines = AsciiLines { path, lines: text.lines(), line_no: header.lines, bytes_left: body.len() };
     for (index, element) in header.elements.iter().enumerate() {
         match layout.role(index) {
-            Role::Vertex => ascii_vertices(&mut lines, element, &layout.vertex_axes, mesh)?,
-            Role::Face { list } => ascii_faces(&mut lines, element, list, layout.vertex_count, mesh)?,
+            Role::Vertex => ascii_vertices(&mut lines, element, layout, vertices)?,
+            Role::Face { list } => ascii_faces(&mut lines, element, list, layout.vertex_count, vertices.mesh)?,
             Role::Skip => {
                 for i in 0..element.count {
                     lines.next(i, element)?;
@@ -401,30 +439,52 @@ impl<'t> AsciiLine<'t> {
 fn ascii_vertices(
     lines: &mut AsciiLines,
     element: &Element,
-    axes: &[Option<usize>],
-    mesh: &mut MeshData,
+    layout: &Layout,
+    vertices: &mut Vertices,
 ) -> Result<(), LoadError> {
     let path = lines.path;
     // An ASCII vertex takes at least two bytes per property ("0 ").
     let capacity = capped_capacity(element.count, lines.bytes_left, 2 * element.properties.len());
-    mesh.positions.reserve(capacity);
+    vertices.reserve(capacity, layout);
     for i in 0..element.count {
         let mut line = lines.next(i, element)?;
-        let mut xyz = [0.0f64; 3];
-        for (property, axis) in element.properties.iter().zip(axes) {
+        let mut values = [0.0f64; 5];
+        for (property, axis) in element.properties.iter().zip(&layout.vertex_axes) {
             match (property.ty, axis) {
-                (PropertyType::Scalar(_), Some(axis)) => xyz[*axis % 3] = line.number(path)?,
+                (PropertyType::Scalar(_), Some(axis)) => values[*axis] = line.number(path)?,
                 (PropertyType::Scalar(_), None) => {
                     line.token(path)?;
                 }
                 (PropertyType::List { .. }, _) => line.skip_list(path)?,
             }
         }
-        let p = Vec3::new(xyz[0] as f32, xyz[1] as f32, xyz[2] as f32);
-        check_finite(path, p, Location::Line(line.line_no))?;
-        mesh.positions.push(p);
+        vertices.push(path, values, layout, Location::Line(line.line_no))?;
     }
     Ok(())
+}
+
+impl Vertices<'_> {
+    fn reserve(&mut self, capacity: usize, layout: &Layout) {
+        self.mesh.positions.reserve(capacity);
+        if layout.has_uv {
+            self.uvs.reserve(capacity);
+        }
+    }
+
+    /// Adds a vertex: `x, y, z, u, v`.
+    fn push(&mut self, path: &Path, values: [f64; 5], layout: &Layout, at: Location) -> Result<(), LoadError> {
+        let p = Vec3::new(values[0] as f32, values[1] as f32, values[2] as f32);
+        check_finite(path, p, at)?;
+        self.mesh.positions.push(p);
+        if layout.has_uv {
+            let uv = [values[U] as f32, values[V] as f32];
+            if !uv.iter().all(|x| x.is_finite()) {
+                return Err(at.error(path, format!("texture coordinate is not finite ({}, {})", uv[0], uv[1])));
+            }
+            self.uvs.push(uv);
+        }
+        Ok(())
+    }
 }
 
 fn ascii_faces(
@@ -533,12 +593,12 @@ fn read_binary(
     header: &Header,
     layout: &Layout,
     reader: &mut BinaryReader,
-    mesh: &mut MeshData,
+    vertices: &mut Vertices,
 ) -> Result<(), LoadError> {
     for (index, element) in header.elements.iter().enumerate() {
         match layout.role(index) {
-            Role::Vertex => binary_vertices(path, reader, element, &layout.vertex_axes, mesh)?,
-            Role::Face { list } => binary_faces(path, reader, element, list, layout.vertex_count, mesh)?,
+            Role::Vertex => binary_vertices(path, reader, element, layout, vertices)?,
+            Role::Face { list } => binary_faces(path, reader, element, list, layout.vertex_count, vertices.mesh)?,
             Role::Skip => skip_binary(reader, element).ok_or_else(|| truncated(path, element, None))?,
         }
     }
@@ -573,24 +633,22 @@ fn binary_vertices(
     path: &Path,
     reader: &mut BinaryReader,
     element: &Element,
-    axes: &[Option<usize>],
-    mesh: &mut MeshData,
+    layout: &Layout,
+    vertices: &mut Vertices,
 ) -> Result<(), LoadError> {
     let capacity = capped_capacity(element.count, reader.remaining(), element.min_binary_size());
-    mesh.positions.reserve(capacity);
+    vertices.reserve(capacity, layout);
     for i in 0..element.count {
-        let mut xyz = [0.0f64; 3];
-        for (property, axis) in element.properties.iter().zip(axes) {
+        let mut values = [0.0f64; 5];
+        for (property, axis) in element.properties.iter().zip(&layout.vertex_axes) {
             let read = match (property.ty, axis) {
-                (PropertyType::Scalar(s), Some(axis)) => reader.read(s).map(|v| xyz[*axis % 3] = v),
+                (PropertyType::Scalar(s), Some(axis)) => reader.read(s).map(|v| values[*axis] = v),
                 (PropertyType::Scalar(s), None) => reader.skip(s.size()),
                 (PropertyType::List { count, item }, _) => reader.skip_list(count, item),
             };
             read.ok_or_else(|| truncated(path, element, Some(i)))?;
         }
-        let p = Vec3::new(xyz[0] as f32, xyz[1] as f32, xyz[2] as f32);
-        check_finite(path, p, Location::Vertex(mesh.positions.len()))?;
-        mesh.positions.push(p);
+        vertices.push(path, values, layout, Location::Vertex(i))?;
     }
     Ok(())
 }
@@ -697,6 +755,74 @@ mod tests {
             QUAD_HEADER.replace('\n', "\r\n")
         );
         check_quad(&parse_bytes(text.as_bytes()).unwrap());
+    }
+
+    /// Texture coordinates, under each of their names, become each triangle's corners'; one
+    /// of a pair alone is skipped.
+    #[test]
+    fn texture_coordinates() {
+        let header = |u: &str, v: &str| {
+            format!(
+                "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float {u}\n\
+                 property float y\nproperty float z\nproperty float {v}\nelement face 1\n\
+                 property list uchar int vertex_indices\nend_header\n"
+            )
+        };
+        let body = "0 0.0 0 0 0.5\n1 1.0 0 0 0.5\n1 1.0 1 0 1.0\n0 0.25 1 0 1.0\n4 0 1 2 3\n";
+        for (u, v) in [("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t")] {
+            let mesh = parse_bytes(format!("{}{body}", header(u, v)).as_bytes()).unwrap();
+            assert_eq!(mesh.triangles, vec![[0, 1, 2], [0, 2, 3]], "{u}/{v}");
+            assert_eq!(
+                mesh.uvs,
+                vec![[[0.0, 0.5], [1.0, 0.5], [1.0, 1.0]], [[0.0, 0.5], [1.0, 1.0], [0.25, 1.0]]],
+                "{u}/{v}"
+            );
+        }
+        // `u` without `v`: read as an unknown property, no texture coordinates.
+        let mesh = parse_bytes(format!("{}{body}", header("u", "w")).as_bytes()).unwrap();
+        assert!(mesh.uvs.is_empty());
+        assert_eq!(mesh.positions[2], Vec3::new(1.0, 1.0, 0.0));
+        // A non-finite one is an error at its line (binary files: at its vertex).
+        let bad = format!("{}{}", header("u", "v"), body.replace("1 1.0 1 0 1.0", "1 inf 1 0 1.0"));
+        let message = parse_bytes(bad.as_bytes()).unwrap_err().to_string();
+        assert!(message.contains("test.ply:14:") && message.contains("texture coordinate is not finite"), "{message}");
+        let twice = header("u", "v").replace("property float z", "property float z\nproperty float s");
+        let message = parse_bytes(format!("{twice}{body}").as_bytes()).unwrap_err().to_string();
+        assert!(message.contains("more than one texture coordinate u"), "{message}");
+    }
+
+    /// Binary files: both endiannesses, doubles among floats.
+    #[test]
+    fn binary_texture_coordinates() {
+        for big_endian in [false, true] {
+            let format = if big_endian { "binary_big_endian" } else { "binary_little_endian" };
+            let mut data = format!(
+                "ply\nformat {format} 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                 property float z\nproperty double s\nproperty float t\nelement face 1\n\
+                 property list uchar int vertex_indices\nend_header\n"
+            )
+            .into_bytes();
+            let mut put = |bytes: &[u8]| {
+                if big_endian {
+                    data.extend(bytes.iter().rev());
+                } else {
+                    data.extend_from_slice(bytes);
+                }
+            };
+            for (i, (s, t)) in [(0.5f64, 0.0f32), (0.75, 0.25), (1.0, 1.0)].into_iter().enumerate() {
+                for c in [i as f32, 0.0, 0.0] {
+                    put(&c.to_le_bytes());
+                }
+                put(&s.to_le_bytes());
+                put(&t.to_le_bytes());
+            }
+            put(&[3]);
+            for i in [2i32, 0, 1] {
+                put(&i.to_le_bytes());
+            }
+            let mesh = parse_bytes(&data).unwrap();
+            assert_eq!(mesh.uvs, vec![[[1.0, 1.0], [0.5, 0.0], [0.75, 0.25]]], "{format}");
+        }
     }
 
     #[test]

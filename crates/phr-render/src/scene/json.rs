@@ -145,7 +145,13 @@ enum TypedBackground {
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 enum MaterialFile {
     #[serde(alias = "diffuse")]
-    Lambertian { albedo: Color },
+    Lambertian {
+        albedo: Color,
+        /// An image (PNG or JPEG, relative to the scene file) that the albedo multiplies,
+        /// through the mesh's texture coordinates.
+        #[serde(default)]
+        texture: Option<String>,
+    },
     Metal {
         albedo: Color,
         #[serde(default)]
@@ -178,7 +184,7 @@ impl MaterialFile {
             }
         };
         match *self {
-            MaterialFile::Lambertian { albedo } | MaterialFile::Metal { albedo, .. } => colour(albedo, "albedo"),
+            MaterialFile::Lambertian { albedo, .. } | MaterialFile::Metal { albedo, .. } => colour(albedo, "albedo"),
             MaterialFile::Emissive { emit, .. } => colour(emit, "emit"),
             MaterialFile::Dielectric { ior } if ior.is_finite() && ior > 0.0 => Ok(()),
             MaterialFile::Dielectric { ior } => Err(format!("ior {ior} must be finite and positive")),
@@ -189,7 +195,7 @@ impl MaterialFile {
 impl From<&MaterialFile> for Material {
     fn from(m: &MaterialFile) -> Material {
         match *m {
-            MaterialFile::Lambertian { albedo } => Material::Lambertian { albedo: albedo.into() },
+            MaterialFile::Lambertian { albedo, .. } => Material::Lambertian { albedo: albedo.into() },
             MaterialFile::Metal { albedo, fuzz, fuzz_in_sphere } => {
                 Material::Metal { albedo: albedo.into(), fuzz: fuzz.clamp(0.0, 1.0), fuzz_in_sphere }
             }
@@ -411,7 +417,7 @@ impl SceneBuilder<'_> {
         };
         for (name, m) in &file.materials {
             m.check().map_err(|e| self.err(format!("material \"{name}\": {e}")))?;
-            self.scene.add_material(name.clone(), m.into());
+            self.add_material(name, m)?;
         }
         if let Some(c) = &file.camera {
             self.scene.views.push(("default".into(), camera_desc(c).map_err(|e| self.err(format!("camera: {e}")))?));
@@ -559,6 +565,43 @@ impl SceneBuilder<'_> {
         Ok(())
     }
 
+    /// Adds a material of the file, with its texture if it names one (an image that cannot
+    /// be read is an error naming it and the material).
+    fn add_material(&mut self, name: &str, m: &MaterialFile) -> Result<u32, LoadError> {
+        let texture = match m {
+            MaterialFile::Lambertian { texture: Some(file), .. } => {
+                let image = crate::load::ImageSource::File(resolve_path(file, self.path)?);
+                let texture = self.scene.texture(&image).map_err(|e| {
+                    LoadError::new(image.name(), format!("texture of material \"{name}\": {}", e.message))
+                })?;
+                Some(texture)
+            }
+            _ => None,
+        };
+        let index = self.scene.add_material(name, m.into());
+        self.scene.material_texture[index as usize] = texture;
+        Ok(index)
+    }
+
+    /// [`SceneBuilder::material`] for an object without texture coordinates: a textured
+    /// material is refused rather than drawn in one texel's colour.
+    fn untextured_material(&self, object: usize, name: &str, what: &str) -> Result<u32, LoadError> {
+        let index = self.material(object, name)?;
+        if self.scene.material_texture[index as usize].is_some() {
+            return Err(self.err(format!(
+                "object {object}: material \"{name}\" has a texture, and {what} has no texture coordinates \
+                 (mesh files have them: OBJ `vt`, PLY `u v`, glTF TEXCOORD_0)"
+            )));
+        }
+        Ok(index)
+    }
+
+    fn no_texture_coordinates(&self, object: usize, material: &str, file: &str) -> LoadError {
+        self.err(format!(
+            "object {object}: material \"{material}\" has a texture, and {file} has no texture coordinates"
+        ))
+    }
+
     fn material(&self, object: usize, name: &str) -> Result<u32, LoadError> {
         self.scene.material_index(name).ok_or_else(|| {
             let known = self.scene.material_names.join(", ");
@@ -569,7 +612,7 @@ impl SceneBuilder<'_> {
     fn add_object(&mut self, i: usize, object: &ObjectFile) -> Result<(), LoadError> {
         match object {
             ObjectFile::Sphere { center, radius, material } => {
-                let material = self.material(i, material)?;
+                let material = self.untextured_material(i, material, "a sphere")?;
                 if !radius.is_finite() || *radius == 0.0 || !Vec3::from(*center).is_finite() {
                     return Err(self.err(format!("object {i}: sphere needs a finite centre and non-zero radius")));
                 }
@@ -591,12 +634,16 @@ impl SceneBuilder<'_> {
                 let positions = vertices.iter().map(|&v| v.into()).collect();
                 self.add_inline(i, "triangles", positions, faces.clone(), material, transform)?;
             }
-            ObjectFile::Mesh { file, material, transform, .. } => {
-                let material = self.material(i, material)?;
+            ObjectFile::Mesh { file, material: name, transform, .. } => {
+                let material = self.material(i, name)?;
                 let mut data = self.load(file, transform)?;
-                // One untextured material: no texture coordinates needed.
-                data.uvs.clear();
-                data.shared.iter_mut().for_each(|s| s.uvs.clear());
+                if self.scene.material_texture[material as usize].is_none() {
+                    // One untextured material: no texture coordinates needed.
+                    data.uvs.clear();
+                    data.shared.iter_mut().for_each(|s| s.uvs.clear());
+                } else if data.uvs.is_empty() && data.shared.iter().all(|s| s.uvs.is_empty()) {
+                    return Err(self.no_texture_coordinates(i, name, file));
+                }
                 let group_material = vec![material; data.groups.len()];
                 self.push_grouped(file, data, &group_material)?;
             }
@@ -614,7 +661,7 @@ impl SceneBuilder<'_> {
                     .map(|g| {
                         let name = &data.groups[g];
                         if let Some(m) = materials.get(name) {
-                            Ok(self.scene.add_material(name.clone(), m.into()))
+                            self.add_material(name, m)
                         } else if let Some(f) = fallback {
                             Ok(f)
                         } else {
@@ -622,6 +669,17 @@ impl SceneBuilder<'_> {
                         }
                     })
                     .collect::<Result<Vec<u32>, LoadError>>()?;
+                if data.uvs.is_empty() && data.shared.iter().all(|s| s.uvs.is_empty()) {
+                    // The scene's own textured materials need the file's `vt`. (An MTL's
+                    // `map_Kd` without them is left as the MTL mapping makes it.)
+                    let scene_textured = |m: u32| {
+                        self.scene.material_texture[m as usize].is_some()
+                            && (Some(m) == fallback || materials.contains_key(&self.scene.material_names[m as usize]))
+                    };
+                    if let Some(&m) = group_material.iter().find(|&&m| scene_textured(m)) {
+                        return Err(self.no_texture_coordinates(i, &self.scene.material_names[m as usize], file));
+                    }
+                }
                 self.push_grouped(file, data, &group_material)?;
             }
             ObjectFile::Gltf { file, transform } => {
@@ -656,7 +714,7 @@ impl SceneBuilder<'_> {
         material: &str,
         transform: &Option<TransformFile>,
     ) -> Result<(), LoadError> {
-        let material = self.material(i, material)?;
+        let material = self.untextured_material(i, material, &format!("a {kind}"))?;
         if let Some(bad) = triangles.iter().flatten().find(|&&k| k as usize >= positions.len()) {
             return Err(self.err(format!("object {i} ({kind}): vertex index {bad} out of range")));
         }
