@@ -10,6 +10,7 @@
 pub mod animation;
 pub mod camera;
 pub mod denoise;
+pub mod environment;
 pub mod error;
 pub mod film;
 pub mod geometry;

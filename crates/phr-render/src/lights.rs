@@ -11,7 +11,8 @@
 //! How each emitter is sampled:
 //! - the sky, with probability [`SKY_SHARE`] when there are other lights too (1 when it is the
 //!   only one): a cosine-weighted direction around the surface's normal, which is exact for a
-//!   constant sky over a diffuse surface;
+//!   constant sky over a diffuse surface; an environment map by its own luminance
+//!   distribution ([`crate::environment`]), which finds a small bright sun;
 //! - the other emitters are chosen in proportion to their power (area × brightest emission
 //!   channel): a triangle by a uniform point on it (Shirley's square-root warp), a sphere by a
 //!   uniform direction in the cone it subtends (pbrt's method, exact for any distance).
@@ -220,9 +221,21 @@ impl LightSet {
         (sample.pdf > 0.0 && sample.pdf.is_finite() && sample.dir.is_finite()).then_some(sample)
     }
 
-    /// A cosine-weighted direction around `facing` towards the sky.
+    /// A direction towards the sky: by an environment map's distribution, else
+    /// cosine-weighted around `facing`.
     fn sample_sky(&self, facing: Vec3, rng: &mut Pcg32) -> Option<LightSample> {
         let sky = self.sky.as_ref()?;
+        if let Background::Environment(map) = sky {
+            let (dir, pdf) = map.sample(rng.next_f32(), rng.next_f32())?;
+            // Below the surface it lights nothing.
+            return (facing.dot(dir) > 0.0).then(|| LightSample {
+                dir,
+                point: None,
+                radiance: map.radiance(dir),
+                pdf: self.sky_probability * pdf,
+                prim: SKY,
+            });
+        }
         // RTIOW's construction: the normal plus a uniform unit vector is cosine-distributed.
         let d = facing + rng.unit_vector();
         let length = d.length();
@@ -238,7 +251,10 @@ impl LightSet {
     /// unit direction `dir` that escapes to the sky.
     #[inline]
     pub fn pdf_sky(&self, facing: Vec3, dir: Vec3) -> f32 {
-        self.sky_probability * facing.dot(dir).max(0.0) * FRAC_1_PI
+        match &self.sky {
+            Some(Background::Environment(map)) => self.sky_probability * map.pdf(dir),
+            _ => self.sky_probability * facing.dot(dir).max(0.0) * FRAC_1_PI,
+        }
     }
 
     /// Density with which [`LightSet::sample`] from `from` picks the direction towards

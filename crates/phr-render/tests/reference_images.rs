@@ -4,7 +4,10 @@
 //! `render_reference.py --variant llvm_ad_rgb --integrator rtiow --passes 64`), where a
 //! triangle light meets an emissive sphere, the sky and a glass sphere, and
 //! `tests/references/textured` (made by `make_textured.py` with Mitsuba's own `bitmap`
-//! texture), where OBJ texture coordinates and an MTL `map_Kd` image colour three walls.
+//! texture), where OBJ texture coordinates and an MTL `map_Kd` image colour three walls, and
+//! `tests/references/environment` (made by `make_environment.py` with Mitsuba's own `envmap`
+//! emitter and its `prb_basic` integrator), where an HDR environment map with a small sun
+//! lights a diffuse and a mirror ball.
 //!
 //! Every reference is checked with both estimators, which must converge to the same image.
 //! Renders with the thesis's estimator are judged with `--test-spp` (the reference's own noise
@@ -169,11 +172,20 @@ fn textured_matches_reference() {
     check_both(own_reference("textured"));
 }
 
+/// An HDR environment map: its orientation and bilinear lookup against Mitsuba 3's `envmap`
+/// (the mirror ball shows the map), its importance sampling with MIS against the implicit
+/// estimator's expected image.
+#[test]
+fn environment_matches_reference() {
+    check_both(own_reference("environment"));
+}
+
 #[test]
 #[ignore = "slow: 1024 spp per scene (run with --ignored)"]
 fn all_references_at_1024_spp() {
     let all = ["cornell_obj", "cornell_glass_mirror", "spheres_sky", "bunny_sky"].map(shared_reference);
-    for reference in all.into_iter().chain([own_reference("lights_mixed"), own_reference("textured")]) {
+    let own = ["lights_mixed", "textured", "environment"].map(own_reference);
+    for reference in all.into_iter().chain(own) {
         for estimator in [Estimator::Implicit, Estimator::Lights] {
             check_with(&reference, 1024, estimator);
         }

@@ -3,8 +3,9 @@
 //!
 //! Top level: `width`, `height` (or `resolution`), `spp`, `max_depth`, `camera`, `views`
 //! (`{"name": camera, ...}`, in file order, after `camera` which is called `default`),
-//! `background` (a colour, `{"type": "constant", "color"}` or `{"type": "gradient", "bottom",
-//! "top"}`), `materials` (`{"name": material}`), `objects` (a list). Object types: `sphere`,
+//! `background` (a colour, `{"type": "constant", "color"}`, `{"type": "gradient", "bottom",
+//! "top"}` or `{"type": "environment", "file", "scale", "rotate"}`, an HDR image all around,
+//! see [`crate::environment`]), `materials` (`{"name": material}`), `objects` (a list). Object types: `sphere`,
 //! `quad`, `triangle`, `triangles`, `mesh` (one material for a whole OBJ/PLY/glTF file),
 //! `obj_mtl` (an OBJ with its MTL, optional per-name overrides and `"mtl_mapping": "reference"
 //! | "full"`, see [`super::materials`]), `gltf` (a glTF file with its own materials and
@@ -16,6 +17,7 @@
 use super::materials::MtlMapping;
 use super::{Background, InstancedMesh, Mesh, RenderSettings, Scene, SphereObject};
 use crate::camera::CameraDesc;
+use crate::environment::EnvironmentMap;
 use crate::error::LoadError;
 use crate::load::{load_mesh_keeping_shared, MeshData};
 use crate::material::Material;
@@ -137,8 +139,25 @@ enum BackgroundFile {
 #[derive(Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 enum TypedBackground {
-    Constant { color: Color },
-    Gradient { bottom: Color, top: Color },
+    Constant {
+        color: Color,
+    },
+    Gradient {
+        bottom: Color,
+        top: Color,
+    },
+    Environment {
+        file: String,
+        #[serde(default = "unit_scale")]
+        scale: f32,
+        /// Degrees about +y.
+        #[serde(default)]
+        rotate: f32,
+    },
+}
+
+fn unit_scale() -> f32 {
+    1.0
 }
 
 #[derive(Clone, Deserialize)]
@@ -378,6 +397,17 @@ fn check_keys(scene: &serde_json::Value) -> Result<(), String> {
     for (name, view) in scene.get("views").and_then(|v| v.as_object()).into_iter().flatten() {
         check(view, CAMERA_KEYS, &format!("view \"{name}\""))?;
     }
+    if let Some(background) = scene.get("background") {
+        let allowed: &[&str] = match background.get("type").and_then(|t| t.as_str()) {
+            Some("constant") => &["type", "color"],
+            Some("gradient") => &["type", "bottom", "top"],
+            Some("environment") => &["type", "file", "scale", "rotate"],
+            _ => &["type"],
+        };
+        if background.get("type").is_some() {
+            check(background, allowed, "background")?;
+        }
+    }
     for (i, object) in scene.get("objects").and_then(|v| v.as_array()).into_iter().flatten().enumerate() {
         let kind = object.get("type").and_then(|t| t.as_str()).unwrap_or("");
         if let Some(allowed) = object_keys(kind) {
@@ -413,6 +443,10 @@ impl SceneBuilder<'_> {
             Some(BackgroundFile::Typed(TypedBackground::Constant { color })) => Background::Constant(color.into()),
             Some(BackgroundFile::Typed(TypedBackground::Gradient { bottom, top })) => {
                 Background::Gradient { bottom: bottom.into(), top: top.into() }
+            }
+            Some(BackgroundFile::Typed(TypedBackground::Environment { ref file, scale, rotate })) => {
+                let path = resolve_path(file, self.path)?;
+                Background::Environment(std::sync::Arc::new(EnvironmentMap::load(&path, scale, rotate)?))
             }
         };
         for (name, m) in &file.materials {
@@ -898,5 +932,23 @@ mod tests {
         assert!(e.to_string().contains("out of range"), "{e}");
         let e = parse(r#"{"materials": {"w": {"type": "diffuse", "albedo": 0.5}}, "objects": [{"type": "mesh", "file": "missing.ply", "material": "w"}]}"#).unwrap_err();
         assert!(e.to_string().contains("missing.ply"), "{e}");
+    }
+
+    /// An environment background names its file when it cannot be read, and takes only its
+    /// own keys.
+    #[test]
+    fn environment_background_errors() {
+        let scene = |background: &str| {
+            format!(
+                r#"{{"background": {background}, "materials": {{"w": {{"type": "diffuse", "albedo": 0.5}}}},
+                    "objects": [{{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "w"}}]}}"#
+            )
+        };
+        let e = parse(&scene(r#"{"type": "environment", "file": "sky.hdr"}"#)).unwrap_err().to_string();
+        assert!(e.contains("/nonexistent/sky.hdr"), "{e}");
+        let e = parse(&scene(r#"{"type": "environment", "file": "sky.hdr", "rotation": 3}"#)).unwrap_err().to_string();
+        assert!(e.contains("background: unknown key \"rotation\""), "{e}");
+        let e = parse(&scene(r#"{"type": "gradient", "bottom": 1, "top": 1, "file": "x"}"#)).unwrap_err().to_string();
+        assert!(e.contains("unknown key \"file\""), "{e}");
     }
 }

@@ -18,7 +18,7 @@ use phr_bvh::instance::Instance;
 use phr_bvh::sphere::Sphere;
 
 /// Radiance of rays that leave the scene.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub enum Background {
     Constant(Vec3),
     /// RTIOW's sky: `(1 - a)·bottom + a·top` with `a = 0.5 (d.y + 1)` for the unit direction `d`.
@@ -26,6 +26,22 @@ pub enum Background {
         bottom: Vec3,
         top: Vec3,
     },
+    /// An HDR image all around ([`crate::environment`]).
+    Environment(std::sync::Arc<crate::environment::EnvironmentMap>),
+}
+
+impl PartialEq for Background {
+    /// Colours by value, environment maps by identity (the same loaded map).
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Background::Constant(a), Background::Constant(b)) => a == b,
+            (Background::Gradient { bottom: a, top: b }, Background::Gradient { bottom: c, top: d }) => {
+                a == c && b == d
+            }
+            (Background::Environment(a), Background::Environment(b)) => std::sync::Arc::ptr_eq(a, b),
+            _ => false,
+        }
+    }
 }
 
 impl Background {
@@ -37,6 +53,7 @@ impl Background {
                 let a = 0.5 * (unit_dir.y + 1.0);
                 (1.0 - a) * *bottom + a * *top
             }
+            Background::Environment(map) => map.radiance(unit_dir),
         }
     }
 
@@ -45,6 +62,7 @@ impl Background {
         match self {
             Background::Constant(c) => c.max_element(),
             Background::Gradient { bottom, top } => bottom.max_element().max(top.max_element()),
+            Background::Environment(map) => map.max_radiance(),
         }
     }
 }

@@ -19,17 +19,12 @@ reference renderer in ../shared/reference/tools), which knows no textures; only 
 and their textured BSDFs are made here.
 """
 
-import argparse
 import json
 import os
-import sys
 
 import numpy as np
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-TOOLS = os.path.join(HERE, "..", "..", "..", "..", "..", "shared", "reference", "tools")
-sys.path.insert(0, TOOLS)
-import render_reference as rr  # noqa: E402
+from reference_run import HERE, mitsuba_dict, options, render_and_write, rr
 
 # Three quads: (name, corners counter-clockwise seen from the inside, uv scale).
 SURFACES = [
@@ -105,31 +100,11 @@ def textured_meshes(mi):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--spp", type=int, default=SCENE["spp"])
-    ap.add_argument("--passes", type=int, default=16)
-    ap.add_argument("--variant", default="llvm_ad_rgb")
-    opts = ap.parse_args()
+    opts = options(__doc__, SCENE["spp"])
     write_files()
-    variant = rr.setup_variant(opts.variant)
-    mi = rr.mi
-    rr.register_rtiow_plugins()
-    build = argparse.Namespace(max_depth=None, integrator="path", bsdfs="builtin", rr=False,
-                               scenes_dir=None, ray_offset=-1.0)
-    scene = dict(SCENE, objects=[])
-    d = rr.build_mitsuba_dict(scene, build, HERE)
+    variant, mi, d = mitsuba_dict(opts, dict(SCENE, objects=[]), "path")
     d.update(textured_meshes(mi))
-    mean, var, timings = rr.render(d, opts.spp, opts.passes)
-    prefix = os.path.join(HERE, "textured_ref")
-    rr.write_exr(prefix + ".exr", mean)
-    rr.write_exr(prefix + "_var.exr", var)
-    rr.write_png(prefix + ".png", mean)
-    side = {"scene": "textured.json", "spp": opts.spp, "passes": opts.passes, "variant": variant,
-            "integrator": "path", "timings": timings, "made_by": "make_textured.py"}
-    with open(prefix + ".json", "w") as f:
-        json.dump(side, f, indent=2)
-        f.write("\n")
-    print(f"wrote {prefix}.exr ({opts.spp} spp, {variant})")
+    render_and_write(d, opts, "textured", variant, "path", "make_textured.py")
 
 
 if __name__ == "__main__":
