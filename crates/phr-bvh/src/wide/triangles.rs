@@ -51,16 +51,34 @@ impl PackedTriangles {
         // linker's table, which showed up at 4 % of a render's time.
         self.simd.get_or_insert_with(SimdLevel::detect);
         self.blocks.resize(prim_indices.len().div_ceil(LANES), TriangleBlock::default());
-        self.blocks.par_iter_mut().zip(prim_indices.par_chunks(LANES)).for_each(|(block, lanes)| {
-            *block = TriangleBlock::default();
-            for (l, &p) in lanes.iter().enumerate() {
-                if let Some(&[v0, v1, v2]) = triangles.get(p as usize) {
-                    let (e1, e2) = (v1 - v0, v2 - v0);
-                    let values = [v0.x, v0.y, v0.z, e1.x, e1.y, e1.z, e2.x, e2.y, e2.z];
-                    for (row, value) in block.rows.iter_mut().zip(values) {
-                        row[l] = value;
+        // Tasks of PACK_GRAIN blocks; within one, the triangles of the block PREFETCH_AHEAD
+        // blocks on are asked for while this one is filled: the triangles are read in leaf
+        // order, scattered over the scene's array, and the loads otherwise wait one by one.
+        // The dragon (871k triangles, 2 threads): 9.5 ms without the prefetch, 5.3 with 8
+        // blocks ahead, 3.3 with 32, 5.2 with 64 (medians of 31; docs/bench-build/history.md).
+        const PACK_GRAIN: usize = 512;
+        const PREFETCH_AHEAD: usize = 32;
+        self.blocks.par_chunks_mut(PACK_GRAIN).enumerate().for_each(|(chunk, blocks)| {
+            let first = chunk * PACK_GRAIN;
+            let lanes_of = |b: usize| {
+                let start = (b * LANES).min(prim_indices.len());
+                &prim_indices[start..(start + LANES).min(prim_indices.len())]
+            };
+            for (k, block) in blocks.iter_mut().enumerate() {
+                for &p in lanes_of(first + k + PREFETCH_AHEAD) {
+                    prefetch_read(triangles.as_ptr().wrapping_add(p as usize));
+                }
+                let mut rows = [[0.0f32; LANES]; 9];
+                for (l, &p) in lanes_of(first + k).iter().enumerate() {
+                    if let Some(&[v0, v1, v2]) = triangles.get(p as usize) {
+                        let (e1, e2) = (v1 - v0, v2 - v0);
+                        let values = [v0.x, v0.y, v0.z, e1.x, e1.y, e1.z, e2.x, e2.y, e2.z];
+                        for (row, value) in rows.iter_mut().zip(values) {
+                            row[l] = value;
+                        }
                     }
                 }
+                block.rows = rows;
             }
         });
     }
@@ -160,6 +178,23 @@ impl PackedTriangles {
         }
         kept
     }
+}
+
+/// Asks for the cache lines of the 36-byte triangle at `p` (a hint; never faults).
+#[inline(always)]
+fn prefetch_read(p: *const [Vec3; 3]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = p.cast::<i8>();
+        // SAFETY: prefetching is a hint and never faults, whatever the address.
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p);
+            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(35));
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
 }
 
 #[cfg(target_arch = "x86_64")]
