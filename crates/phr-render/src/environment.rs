@@ -18,6 +18,7 @@
 //! Jakob & Humphreys, *PBR* 4th ed., §A.5 "Sampling 2D functions").
 
 use crate::error::LoadError;
+use crate::film::luminance;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{PI, TAU};
 use std::path::Path;
@@ -38,21 +39,16 @@ pub struct EnvironmentMap {
     max_radiance: f32,
 }
 
-fn luminance(c: Vec3) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
-}
-
 impl EnvironmentMap {
-    /// Reads `path` (`.hdr` or `.exr`, by content), scaled by `scale` and turned `rotate`
-    /// degrees about +y. Texels that are negative or not finite are an error.
+    /// Reads `path` (Radiance `.hdr` or OpenEXR, by content), scaled by `scale` and turned
+    /// `rotate` degrees about +y. Texels that are negative or not finite (also once scaled)
+    /// are an error, and so are other image formats (8-bit images hold no radiance).
     pub fn load(path: &Path, scale: f32, rotate: f32) -> Result<EnvironmentMap, LoadError> {
+        use image::ImageFormat::{Hdr, OpenExr};
         let bytes = crate::load::input::read_file(path, "the environment map")?;
-        let image = image::ImageReader::new(std::io::Cursor::new(bytes))
-            .with_guessed_format()
-            .map_err(|e| LoadError::new(path, format!("cannot read the environment map: {e}")))?
-            .decode()
-            .map_err(|e| LoadError::new(path, format!("cannot decode the environment map: {e}")))?
-            .into_rgb32f();
+        let image =
+            crate::load::input::decode_image(&bytes, &path.display().to_string(), "environment map", &[Hdr, OpenExr])?
+                .into_rgb32f();
         let (width, height) = image.dimensions();
         let texels: Vec<Vec3> = image.pixels().map(|p| Vec3::from(p.0)).collect();
         Self::new(width as usize, height as usize, texels, scale, rotate).map_err(|e| LoadError::new(path, e))
@@ -66,7 +62,7 @@ impl EnvironmentMap {
         scale: f32,
         rotate: f32,
     ) -> Result<EnvironmentMap, String> {
-        if width == 0 || height < 2 || texels.len() != width * height {
+        if width == 0 || height < 2 || width.checked_mul(height) != Some(texels.len()) {
             return Err(format!(
                 "environment map of {width} × {height} pixels: needs at least 1 × 2, and that many pixels"
             ));
@@ -87,6 +83,9 @@ impl EnvironmentMap {
         }
         let texels: Vec<Vec3> = texels.into_iter().map(|t| t * scale).collect();
         let max_radiance = texels.iter().fold(0.0f32, |m, t| m.max(t.max_element()));
+        if !max_radiance.is_finite() {
+            return Err(format!("environment map times scale {scale} exceeds the largest float"));
+        }
         let rotation = rotate.to_radians().sin_cos();
         let mut map = EnvironmentMap {
             width,
@@ -98,6 +97,9 @@ impl EnvironmentMap {
             max_radiance,
         };
         map.tabulate();
+        if !map.row_cdf[map.rows()].is_finite() {
+            return Err("environment map: its luminance sums beyond the largest float".into());
+        }
         Ok(map)
     }
 
@@ -150,9 +152,11 @@ impl EnvironmentMap {
     fn uv(d: Vec3) -> (Vec2, f32) {
         let u = d.x.atan2(-d.z) / TAU;
         let u = u - u.floor();
-        let v = d.y.clamp(-1.0, 1.0).acos() / PI;
-        // From x and z, not from 1 − y²: accurate near the poles, where the density needs it.
-        (Vec2::new(u, v), (d.x * d.x + d.z * d.z).sqrt().min(1.0))
+        // θ and sin θ from x and z as well as y, not from y alone: accurate near the poles,
+        // where acos(y) and 1 − y² lose their digits and the density needs them.
+        let sin_theta = (d.x * d.x + d.z * d.z).sqrt();
+        let v = sin_theta.atan2(d.y) / PI;
+        (Vec2::new(u, v), sin_theta.min(1.0))
     }
 
     /// The cell holding `(u, v)` (cell `(x, y)` has the texels `x, x + 1` of rows `y, y + 1`
@@ -229,19 +233,21 @@ impl EnvironmentMap {
         if row_total <= 0.0 {
             return None;
         }
-        let dy = ((target - self.row_cdf[y]) / row_total).clamp(0.0, 1.0) as f32;
+        let dy = ((target - self.row_cdf[y]) / row_total).clamp(0.0, 1.0);
         let target = f64::from(u2) * row_total;
         let x = pick(&row[..self.width], target).min(self.width - 1);
         let weight = row[x + 1] - row[x];
-        let dx = if weight > 0.0 { ((target - row[x]) / weight).clamp(0.0, 1.0) as f32 } else { 0.5 };
-        let u = (x as f32 + dx.min(0.999_999) + 0.5) / self.width as f32;
-        let u = if u >= 1.0 { u - 1.0 } else { u };
-        let v = (y as f32 + dy.min(0.999_999)) / rows as f32;
-        let (phi, theta) = (TAU * u, PI * v);
+        let dx = if weight > 0.0 { ((target - row[x]) / weight).clamp(0.0, 1.0) } else { 0.5 };
+        let u = ((x as f64 + dx + 0.5) / self.width as f64).fract();
+        let v = (y as f64 + dy) / rows as f64;
+        let (phi, theta) = (std::f64::consts::TAU * u, std::f64::consts::PI * v);
         let (sin_theta, cos_theta) = theta.sin_cos();
-        let local = Vec3::new(sin_theta * phi.sin(), cos_theta, -sin_theta * phi.cos());
-        let pdf = self.density(weight, sin_theta);
-        (pdf > 0.0 && pdf.is_finite()).then(|| (self.to_world(local).normalize(), pdf))
+        let local = Vec3::new((sin_theta * phi.sin()) as f32, cos_theta as f32, (-sin_theta * phi.cos()) as f32);
+        let dir = self.to_world(local).normalize();
+        // The density of the cell the direction lies in, as `pdf` finds it: where rounding
+        // puts a point of this cell on its edge, the two still agree, which MIS needs.
+        let pdf = self.pdf(dir);
+        (pdf > 0.0 && pdf.is_finite()).then_some((dir, pdf))
     }
 }
 

@@ -63,6 +63,12 @@ impl Film {
     }
 }
 
+/// The luminance of a linear Rec. 709 colour (the weights of ITU-R BT.709).
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

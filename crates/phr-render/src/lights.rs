@@ -252,7 +252,9 @@ impl LightSet {
     #[inline]
     pub fn pdf_sky(&self, facing: Vec3, dir: Vec3) -> f32 {
         match &self.sky {
-            Some(Background::Environment(map)) => self.sky_probability * map.pdf(dir),
+            // `sample_sky` returns no direction below the surface.
+            Some(Background::Environment(map)) if facing.dot(dir) > 0.0 => self.sky_probability * map.pdf(dir),
+            Some(Background::Environment(_)) => 0.0,
             _ => self.sky_probability * facing.dot(dir).max(0.0) * FRAC_1_PI,
         }
     }

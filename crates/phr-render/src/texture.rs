@@ -53,16 +53,9 @@ impl Texture {
             }
             ImageSource::Embedded { bytes, .. } => bytes,
         };
-        let image = image::ImageReader::new(std::io::Cursor::new(bytes))
-            .with_guessed_format()
-            .map_err(|e| LoadError::new(&name, format!("cannot read texture: {e}")))?
-            .decode()
-            .map_err(|e| LoadError::new(&name, format!("cannot decode texture: {e}")))?
-            .into_rgb8();
+        use image::ImageFormat::{Jpeg, Png};
+        let image = crate::load::input::decode_image(bytes, &name, "texture", &[Png, Jpeg])?.into_rgb8();
         let (width, height) = image.dimensions();
-        if width == 0 || height == 0 {
-            return Err(LoadError::new(&name, "texture has no pixels"));
-        }
         let texels = image.pixels().map(|p| p.0).collect();
         Ok(Texture { width, height, texels })
     }

@@ -46,9 +46,7 @@ const KERNEL: [f32; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.
 /// Beyond `e^-MAX_EXPONENT` a tap counts for nothing.
 const MAX_EXPONENT: f32 = 20.0;
 
-pub(crate) fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
-}
+pub(crate) use crate::film::luminance;
 
 /// `e^-x` for `x` in `[0, MAX_EXPONENT]` within 10⁻⁵ relative: `2^y` with `y = −x·log2(e)`, from
 /// the exponent bits of `y`'s nearest integer and a degree-5 Taylor polynomial for the rest

@@ -30,6 +30,33 @@ pub fn read_file(path: &Path, what: &str) -> Result<Vec<u8>, LoadError> {
     read_bounded(file, MAX_FILE_BYTES, path, what)
 }
 
+/// Decodes an image held in memory (its format recognised by content, within the `image`
+/// crate's default allocation limits), refusing formats other than `allowed`; `name` (a file,
+/// or an image inside an asset) and `what` ("texture", "environment map") name it in errors.
+pub fn decode_image(
+    bytes: &[u8],
+    name: &str,
+    what: &str,
+    allowed: &[image::ImageFormat],
+) -> Result<image::DynamicImage, LoadError> {
+    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| LoadError::new(name, format!("cannot read the {what}: {e}")))?;
+    match reader.format() {
+        Some(format) if allowed.contains(&format) => {}
+        found => {
+            let names: Vec<&str> = allowed.iter().map(|f| f.extensions_str()[0]).collect();
+            let found = found.map_or("an unknown format".to_string(), |f| format!("{f:?}"));
+            return Err(LoadError::new(name, format!("the {what} is {found}, not one of {}", names.join(", "))));
+        }
+    }
+    let image = reader.decode().map_err(|e| LoadError::new(name, format!("cannot decode the {what}: {e}")))?;
+    if image.width() == 0 || image.height() == 0 {
+        return Err(LoadError::new(name, format!("the {what} has no pixels")));
+    }
+    Ok(image)
+}
+
 /// Inflates gzip data (all members) to at most [`MAX_FILE_BYTES`].
 pub fn gunzip(path: &Path, compressed: &[u8]) -> Result<Vec<u8>, LoadError> {
     gunzip_at_most(path, compressed, MAX_FILE_BYTES)

@@ -1,9 +1,10 @@
 //! PLY reader (`ascii`, `binary_little_endian`, `binary_big_endian`), written by hand.
 //!
 //! Reads `element vertex` (properties `x`, `y`, `z` of any scalar type, and texture
-//! coordinates when a pair of them is there: `u`/`v`, `s`/`t`, `texture_u`/`texture_v` or
-//! `texture_s`/`texture_t`, with `v = 0` at the image's bottom as in OBJ files; other
-//! properties, lists included, are skipped) and `element face` (the list property
+//! coordinates when a pair of them is there: the first of `u`/`v`, `s`/`t`,
+//! `texture_u`/`texture_v` and `texture_s`/`texture_t` the element has, with `v = 0` at the
+//! image's bottom as in OBJ files; other properties, lists included, are skipped; texture
+//! coordinates given per face corner, MeshLab's `texcoord` lists, are not read) and `element face` (the list property
 //! `vertex_indices` or `vertex_index`; polygons are fan-triangulated). Other elements are
 //! skipped: by line in ASCII files, by size in binary ones. All triangles go to one group,
 //! `default`.
@@ -259,30 +260,28 @@ impl Layout {
         let vertex = (header.elements.iter().position(|e| e.name == "vertex"))
             .ok_or_else(|| header_error(header.lines, "header has no `element vertex`"))?;
         let element = &header.elements[vertex];
+        let scalar = |name: &str| {
+            element.properties.iter().position(|p| p.name == name && matches!(p.ty, PropertyType::Scalar(_)))
+        };
         let axis = |p: &Property| match (p.name.as_str(), p.ty) {
             ("x", PropertyType::Scalar(_)) => Some(0),
             ("y", PropertyType::Scalar(_)) => Some(1),
             ("z", PropertyType::Scalar(_)) => Some(2),
-            ("u" | "s" | "texture_u" | "texture_s", PropertyType::Scalar(_)) => Some(U),
-            ("v" | "t" | "texture_v" | "texture_t", PropertyType::Scalar(_)) => Some(V),
             _ => None,
         };
         let mut vertex_axes: Vec<_> = element.properties.iter().map(axis).collect();
         if (0..3).any(|a| !vertex_axes.contains(&Some(a))) {
             return Err(header_error(element.line, "vertex element needs scalar properties x, y and z"));
         }
-        for value in [U, V] {
-            if vertex_axes.iter().filter(|&&a| a == Some(value)).count() > 1 {
-                let name = if value == U { "u" } else { "v" };
-                let message = format!("vertex element has more than one texture coordinate {name}");
-                return Err(header_error(element.line, &message));
-            }
+        // The first pair of texture coordinates the element has; other such names are
+        // skipped like any unknown property.
+        let pair = [("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t")]
+            .into_iter()
+            .find_map(|(u, v)| Some((scalar(u)?, scalar(v)?)));
+        if let Some((u, v)) = pair {
+            (vertex_axes[u], vertex_axes[v]) = (Some(U), Some(V));
         }
-        let has_uv = vertex_axes.contains(&Some(U)) && vertex_axes.contains(&Some(V));
-        if !has_uv {
-            // One of a pair alone is no texture coordinate: skipped like any other property.
-            vertex_axes.iter_mut().filter(|a| a.is_some_and(|a| a >= U)).for_each(|a| *a = None);
-        }
+        let has_uv = pair.is_some();
         if element.count > u32::MAX as usize {
             return Err(header_error(element.line, "too many vertices"));
         }
@@ -786,9 +785,13 @@ mod tests {
         let bad = format!("{}{}", header("u", "v"), body.replace("1 1.0 1 0 1.0", "1 inf 1 0 1.0"));
         let message = parse_bytes(bad.as_bytes()).unwrap_err().to_string();
         assert!(message.contains("test.ply:14:") && message.contains("texture coordinate is not finite"), "{message}");
-        let twice = header("u", "v").replace("property float z", "property float z\nproperty float s");
-        let message = parse_bytes(format!("{twice}{body}").as_bytes()).unwrap_err().to_string();
-        assert!(message.contains("more than one texture coordinate u"), "{message}");
+        // Two pairs: the first of the list (u, v) wins over (s, t). Properties x s y z u v t:
+        // u takes the values that were t's above, v is 0.
+        let twice =
+            header("s", "t").replace("property float z", "property float z\nproperty float u\nproperty float v");
+        let body = body.replace(" 0.5\n", " 0.5 0 9\n").replace(" 1.0\n", " 1.0 0 9\n");
+        let mesh = parse_bytes(format!("{twice}{body}").as_bytes()).unwrap();
+        assert_eq!(mesh.uvs, vec![[[0.5, 0.0], [0.5, 0.0], [1.0, 0.0]], [[0.5, 0.0], [1.0, 0.0], [1.0, 0.0]]]);
     }
 
     /// Binary files: both endiannesses, doubles among floats.

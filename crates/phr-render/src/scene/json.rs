@@ -398,13 +398,14 @@ fn check_keys(scene: &serde_json::Value) -> Result<(), String> {
         check(view, CAMERA_KEYS, &format!("view \"{name}\""))?;
     }
     if let Some(background) = scene.get("background") {
-        let allowed: &[&str] = match background.get("type").and_then(|t| t.as_str()) {
-            Some("constant") => &["type", "color"],
-            Some("gradient") => &["type", "bottom", "top"],
-            Some("environment") => &["type", "file", "scale", "rotate"],
-            _ => &["type"],
+        let allowed: Option<&[&str]> = match background.get("type").and_then(|t| t.as_str()) {
+            Some("constant") => Some(&["type", "color"]),
+            Some("gradient") => Some(&["type", "bottom", "top"]),
+            Some("environment") => Some(&["type", "file", "scale", "rotate"]),
+            // No type (a colour), or an unknown one, which the parser names.
+            _ => None,
         };
-        if background.get("type").is_some() {
+        if let Some(allowed) = allowed {
             check(background, allowed, "background")?;
         }
     }
@@ -602,19 +603,13 @@ impl SceneBuilder<'_> {
     /// Adds a material of the file, with its texture if it names one (an image that cannot
     /// be read is an error naming it and the material).
     fn add_material(&mut self, name: &str, m: &MaterialFile) -> Result<u32, LoadError> {
-        let texture = match m {
+        let image = match m {
             MaterialFile::Lambertian { texture: Some(file), .. } => {
-                let image = crate::load::ImageSource::File(resolve_path(file, self.path)?);
-                let texture = self.scene.texture(&image).map_err(|e| {
-                    LoadError::new(image.name(), format!("texture of material \"{name}\": {}", e.message))
-                })?;
-                Some(texture)
+                Some(crate::load::ImageSource::File(resolve_path(file, self.path)?))
             }
             _ => None,
         };
-        let index = self.scene.add_material(name, m.into());
-        self.scene.material_texture[index as usize] = texture;
-        Ok(index)
+        self.scene.add_textured_material(name, m.into(), image)
     }
 
     /// [`SceneBuilder::material`] for an object without texture coordinates: a textured

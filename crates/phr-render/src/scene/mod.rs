@@ -241,6 +241,17 @@ impl Scene {
             (SourceMaterial::Gltf(g), Material::Lambertian { .. }) => g.base_color_texture.clone(),
             _ => None,
         };
+        self.add_textured_material(name, material, image)
+    }
+
+    /// Adds a material with its colour texture, if it has one: `image` is read once per scene
+    /// ([`Scene::texture`]); one that cannot be read is an error naming it and the material.
+    pub fn add_textured_material(
+        &mut self,
+        name: &str,
+        material: Material,
+        image: Option<crate::load::ImageSource>,
+    ) -> Result<u32, crate::error::LoadError> {
         let texture = image
             .map(|image| {
                 self.texture(&image).map_err(|e| {

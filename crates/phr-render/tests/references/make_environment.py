@@ -60,7 +60,7 @@ def environment():
     w, h = 64, 32
     img = np.zeros((h, w, 3), dtype=np.float32)
     for y in range(h):
-        theta = math.pi * (y + 0.5) / h
+        theta = math.pi * y / (h - 1)  # where the lookup puts row y
         if theta < math.pi / 2:
             a = theta / (math.pi / 2)
             img[y, :] = (1 - a) * np.array([0.25, 0.45, 1.0]) + a * np.array([0.9, 0.9, 1.0])

@@ -4,8 +4,10 @@ and writing a reference as render_reference.py writes them (NAME_ref.exr, NAME_r
 NAME_ref.png and NAME_ref.json)."""
 
 import argparse
+import atexit
 import json
 import os
+import shutil
 import sys
 import tempfile
 
@@ -31,8 +33,11 @@ def mitsuba_dict(opts, scene, integrator):
     rr.register_rtiow_plugins()
     build = argparse.Namespace(max_depth=None, integrator=integrator, bsdfs="builtin", rr=False,
                                scenes_dir=None, ray_offset=-1.0)
-    # The meshes render_reference.py writes for inline objects go to a scratch folder.
-    return variant, rr.mi, rr.build_mitsuba_dict(scene, build, tempfile.mkdtemp(prefix="phr-reference-"))
+    # The meshes render_reference.py writes for inline objects go to a scratch folder,
+    # removed when the script ends.
+    scratch = tempfile.mkdtemp(prefix="phr-reference-")
+    atexit.register(shutil.rmtree, scratch, ignore_errors=True)
+    return variant, rr.mi, rr.build_mitsuba_dict(scene, build, scratch)
 
 
 def render_and_write(d, opts, name, variant, integrator, made_by):
