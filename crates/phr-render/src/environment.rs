@@ -340,6 +340,27 @@ mod tests {
         }
     }
 
+    /// A Radiance file is read (texel for texel, up to its shared-exponent precision), an
+    /// 8-bit PNG is refused by name.
+    #[test]
+    fn files() {
+        let dir = std::env::temp_dir().join(format!("phr-envmap-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let pixels: Vec<image::Rgb<f32>> = (0..8).map(|i| image::Rgb([i as f32, 0.5, 2.0])).collect();
+        let hdr = dir.join("sky.hdr");
+        image::codecs::hdr::HdrEncoder::new(std::fs::File::create(&hdr).unwrap()).encode(&pixels, 4, 2).unwrap();
+        let map = EnvironmentMap::load(&hdr, 2.0, 0.0).unwrap();
+        assert_eq!((map.width, map.height), (4, 2));
+        for (i, t) in map.texels.iter().enumerate() {
+            assert!((*t - 2.0 * Vec3::new(i as f32, 0.5, 2.0)).abs().max_element() < 0.05, "texel {i}: {t}");
+        }
+        let png = dir.join("sky.png");
+        image::RgbImage::new(4, 2).save(&png).unwrap();
+        let e = EnvironmentMap::load(&png, 1.0, 0.0).unwrap_err().to_string();
+        assert!(e.contains("sky.png") && e.contains("is Png, not one of hdr, exr"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
     #[test]
     fn bad_maps_are_refused() {
         assert!(EnvironmentMap::new(1, 2, vec![Vec3::ONE, Vec3::splat(f32::NAN)], 1.0, 0.0)
