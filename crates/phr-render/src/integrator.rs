@@ -47,6 +47,29 @@ pub struct PathSample {
     pub rays: u32,
 }
 
+/// What a camera ray's first hit gives the denoiser's guide ([`crate::denoise::Guide`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FirstHit {
+    /// [`PathTracer::albedo_at`] the hit (white where the ray leaves the scene).
+    pub albedo: Vec3,
+    /// Unit normal on the camera's side (zero: no surface).
+    pub normal: Vec3,
+    pub position: Vec3,
+    /// The surface emits (a light).
+    pub light: bool,
+}
+
+impl FirstHit {
+    /// A ray that leaves the scene.
+    pub const SKY: FirstHit = FirstHit { albedo: Vec3::ONE, normal: Vec3::ZERO, position: Vec3::ZERO, light: false };
+}
+
+impl Default for FirstHit {
+    fn default() -> Self {
+        Self::SKY
+    }
+}
+
 /// A vertex whose lights were sampled (diffuse, fuzzy metal): what the next segment's MIS
 /// weight needs.
 #[derive(Clone, Copy)]
@@ -62,24 +85,49 @@ impl PathTracer<'_> {
     /// Traces one path starting with `ray` (unit direction not required).
     #[inline]
     pub fn trace(&self, ray: Ray, rng: &mut Pcg32) -> PathSample {
+        let mut unused = FirstHit::SKY;
         match self.lights {
-            Some(lights) => self.trace_with_lights(ray, lights, rng),
-            None => self.trace_implicit(ray, rng),
+            Some(lights) => self.trace_with_lights::<false>(ray, lights, rng, &mut unused),
+            None => self.trace_implicit::<false>(ray, rng, &mut unused),
         }
     }
 
-    /// The thesis's estimator: BSDF sampling alone.
-    fn trace_implicit(&self, mut ray: Ray, rng: &mut Pcg32) -> PathSample {
+    /// [`PathTracer::trace`], also returning what the path's first hit gives the denoiser's
+    /// guide: the guide then follows the very rays the colour came from, at no extra ray.
+    pub fn trace_guided(&self, ray: Ray, rng: &mut Pcg32) -> (PathSample, FirstHit) {
+        let mut first = FirstHit::SKY;
+        let sample = match self.lights {
+            Some(lights) => self.trace_with_lights::<true>(ray, lights, rng, &mut first),
+            None => self.trace_implicit::<true>(ray, rng, &mut first),
+        };
+        (sample, first)
+    }
+
+    /// The guide's view of a camera ray's hit.
+    pub fn first_hit(&self, surface: &SurfacePoint, hit: &Hit) -> FirstHit {
+        FirstHit {
+            albedo: self.albedo_at(surface, hit),
+            normal: if surface.front { surface.normal } else { -surface.normal },
+            position: surface.position,
+            light: self.materials[surface.material as usize].is_emissive(),
+        }
+    }
+
+    /// The thesis's estimator: BSDF sampling alone. `GUIDE`: record the first hit.
+    fn trace_implicit<const GUIDE: bool>(&self, mut ray: Ray, rng: &mut Pcg32, first: &mut FirstHit) -> PathSample {
         let mut radiance = Vec3::ZERO;
         let mut throughput = Vec3::ONE;
         let mut rays = 0;
-        for _ in 0..self.max_depth {
+        for segment in 0..self.max_depth {
             rays += 1;
             let Some(hit) = self.geometry.intersect(&ray) else {
                 radiance += throughput * self.background.radiance(ray.dir.normalize());
                 break;
             };
             let surface = self.geometry.surface_point(&ray, &hit);
+            if GUIDE && segment == 0 {
+                *first = self.first_hit(&surface, &hit);
+            }
             let material = &self.materials[surface.material as usize];
             radiance += throughput * material.emitted(surface.front);
             match material.scatter(ray.dir, surface.normal, surface.front, rng) {
@@ -113,7 +161,13 @@ impl PathTracer<'_> {
 
     /// Light sampling at diffuse and fuzzy-metal hits, MIS with BSDF sampling, Russian
     /// roulette.
-    fn trace_with_lights(&self, mut ray: Ray, lights: &LightSet, rng: &mut Pcg32) -> PathSample {
+    fn trace_with_lights<const GUIDE: bool>(
+        &self,
+        mut ray: Ray,
+        lights: &LightSet,
+        rng: &mut Pcg32,
+        first: &mut FirstHit,
+    ) -> PathSample {
         let mut radiance = Vec3::ZERO;
         let mut throughput = Vec3::ONE;
         let mut rays = 0;
@@ -129,6 +183,9 @@ impl PathTracer<'_> {
                 break;
             };
             let surface = self.geometry.surface_point(&ray, &hit);
+            if GUIDE && segment == 0 {
+                *first = self.first_hit(&surface, &hit);
+            }
             let material = &self.materials[surface.material as usize];
             let emitted = material.emitted(surface.front);
             if emitted != Vec3::ZERO {

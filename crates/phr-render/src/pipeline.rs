@@ -25,6 +25,7 @@ use crate::camera::CameraDesc;
 use crate::denoise::{Atrous, Guide, Temporal};
 use crate::film::Film;
 use crate::geometry::Geometry;
+use crate::integrator::FirstHit;
 use crate::lights::LightSet;
 use crate::output::{srgb_encode, turbo};
 use crate::rebuild::AsyncRebuilder;
@@ -384,16 +385,20 @@ impl FramePipeline {
         if self.settings.explicit_lights && self.lights.is_none() {
             self.lights = Some(LightSet::new(&self.geometry, &self.scene.materials, &self.scene.background));
         }
+        // This frame's samples go through the temporal filter, guided by their own first hits.
+        let temporal = self.settings.denoise
+            && self.settings.mode == ViewMode::Colour
+            && self.samples + 1 < ACCUMULATED_DENOISE_FROM;
         let render_start = Instant::now();
-        let (pixels, rays) = self.render();
+        let (pixels, first_hits, rays) = self.render(temporal);
         report.render_ms = ms_since(render_start);
         self.film.add_frame(&pixels);
         self.samples += 1;
         let s = self.samples;
         if self.settings.denoise && self.settings.mode == ViewMode::Colour {
             let denoise_start = Instant::now();
-            if s < ACCUMULATED_DENOISE_FROM {
-                self.denoise_frame(&pixels);
+            if let Some(first_hits) = first_hits {
+                self.denoise_frame(&pixels, &first_hits);
                 report.denoise_ms = ms_since(denoise_start);
             } else if s.is_power_of_two() || s.is_multiple_of(64) {
                 self.denoise();
@@ -587,8 +592,9 @@ impl FramePipeline {
         Parts { deforming, rigid }
     }
 
-    /// One sample per pixel in the current view mode; returns the pixels and the rays traced.
-    fn render(&self) -> (Vec<Vec3>, u64) {
+    /// One sample per pixel in the current view mode; returns the pixels, their first hits
+    /// if `guided` (colour mode only), and the rays traced.
+    fn render(&self, guided: bool) -> (Vec<Vec3>, Option<Vec<FirstHit>>, u64) {
         let s = &self.settings;
         let size = RenderSettings { width: s.width, height: s.height, spp: 1, max_depth: s.max_depth.max(1) };
         let lights = self.lights.as_ref().filter(|_| s.explicit_lights);
@@ -597,6 +603,10 @@ impl FramePipeline {
         // while animating, it keeps the noise from freezing in place.
         let frame = self.frame as u32;
         let geometry = &self.geometry;
+        if guided && s.mode == ViewMode::Colour {
+            let (pixels, first_hits, stats) = renderer.render_frame_guided(frame);
+            return (pixels, Some(first_hits), stats.rays);
+        }
         let (pixels, stats) = match s.mode {
             ViewMode::Colour => renderer.render_frame(frame),
             ViewMode::Normals => renderer.render_frame_with(frame, |ray, _| match geometry.intersect(&ray) {
@@ -623,7 +633,7 @@ impl FramePipeline {
                 (Vec3::new(linear(r), linear(g), linear(b)), 1)
             }),
         };
-        (pixels, stats.rays)
+        (pixels, None, stats.rays)
     }
 
     /// The first hits of the current view, `samples` jittered ones per pixel.
@@ -634,10 +644,11 @@ impl FramePipeline {
         Guide::render(&renderer, samples)
     }
 
-    /// Denoises this frame's samples `pixels` through the temporal filter.
-    fn denoise_frame(&mut self, pixels: &[Vec3]) {
-        let guide = self.trace_guide(1);
+    /// Denoises this frame's samples `pixels` through the temporal filter, guided by the
+    /// first hits of the rays they came from.
+    fn denoise_frame(&mut self, pixels: &[Vec3], first_hits: &[FirstHit]) {
         let camera = Camera::new(&self.camera, self.settings.width, self.settings.height);
+        let guide = Guide::from_first_hits(&camera, self.settings.width, self.settings.height, first_hits);
         self.denoised = Some(self.temporal.denoise(pixels, &guide, &camera));
     }
 

@@ -7,7 +7,7 @@
 
 use crate::camera::{Camera, CameraDesc};
 use crate::geometry::Geometry;
-use crate::integrator::PathTracer;
+use crate::integrator::{FirstHit, PathTracer};
 use crate::lights::LightSet;
 use crate::sampler::Pcg32;
 use crate::scene::{RenderSettings, Scene};
@@ -82,15 +82,26 @@ impl Renderer<'_> {
         })
     }
 
+    /// [`Renderer::render_frame`], also returning each pixel's first hit, from the ray its
+    /// colour came from (what the denoiser's guide is made of, at no extra ray).
+    pub fn render_frame_guided(&self, frame: u32) -> (Vec<Vec3>, Vec<FirstHit>, FrameStats) {
+        let (pixels, stats) = self.render_frame_with(frame, |ray, rng| {
+            let (sample, first) = self.tracer.trace_guided(ray, rng);
+            ((sample.radiance, first), sample.rays)
+        });
+        let (colours, hits) = pixels.into_iter().unzip();
+        (colours, hits, stats)
+    }
+
     /// The tile loop of [`Renderer::render_frame`] with another per-pixel estimator:
-    /// `shade(camera_ray, rng)` returns a colour and the number of rays it traced. The
-    /// viewer's normal, albedo and heatmap modes use it.
-    pub fn render_frame_with(
+    /// `shade(camera_ray, rng)` returns what the pixel holds (a colour) and the number of
+    /// rays it traced. The viewer's normal, albedo and heatmap modes use it.
+    pub fn render_frame_with<T: Copy + Default + Send>(
         &self,
         frame: u32,
-        shade: impl Fn(phr_bvh::Ray, &mut Pcg32) -> (Vec3, u32) + Sync,
-    ) -> (Vec<Vec3>, FrameStats) {
-        let tiles: Vec<(Vec<Vec3>, u64)> = self
+        shade: impl Fn(phr_bvh::Ray, &mut Pcg32) -> (T, u32) + Sync,
+    ) -> (Vec<T>, FrameStats) {
+        let tiles: Vec<(Vec<T>, u64)> = self
             .tiles()
             .into_par_iter()
             .map(|(x0, y0)| {
@@ -109,7 +120,7 @@ impl Renderer<'_> {
                 (out, rays)
             })
             .collect();
-        let mut image = vec![Vec3::ZERO; (self.width * self.height) as usize];
+        let mut image = vec![T::default(); (self.width * self.height) as usize];
         let mut stats = FrameStats::default();
         for ((x0, y0), (pixels, rays)) in self.tiles().into_iter().zip(tiles) {
             let tile_w = (x0 + TILE).min(self.width) - x0;

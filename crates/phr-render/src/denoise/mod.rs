@@ -15,7 +15,8 @@ mod temporal;
 pub use atrous::Atrous;
 pub use temporal::Temporal;
 
-use crate::geometry::{Hit, SurfacePoint};
+use crate::camera::Camera;
+use crate::integrator::FirstHit;
 use crate::render::Renderer;
 use crate::sampler::Pcg32;
 use glam::Vec3;
@@ -55,45 +56,56 @@ impl Guide {
                 let (x, y) = ((i % w) as f32, (i / w) as f32);
                 let mut rng = Pcg32::for_pixel(renderer.seed ^ 0x6a09_e667, 0, i);
                 // The centre's hit guides the filter; it and jittered ones average the albedo.
-                let centre = camera.ray(x + 0.5, y + 0.5);
-                let centre_surface =
-                    geometry.intersect(&centre).map(|hit| (geometry.surface_point(&centre, &hit), hit));
-                let mut sees_light = false;
-                let mut albedo_of = |first: Option<&(SurfacePoint, Hit)>| match first {
-                    Some((surface, hit)) => {
-                        sees_light |= tracer.materials[surface.material as usize].is_emissive();
-                        tracer.albedo_at(surface, hit)
-                    }
-                    None => Vec3::ONE,
+                let first_hit = |ray: &phr_bvh::Ray| {
+                    let hit = geometry.intersect(ray);
+                    hit.map_or(FirstHit::SKY, |hit| tracer.first_hit(&geometry.surface_point(ray, &hit), &hit))
                 };
-                let mut albedo = albedo_of(centre_surface.as_ref());
+                let mut centre = first_hit(&camera.ray(x + 0.5, y + 0.5));
+                let mut albedo = centre.albedo;
                 for _ in 1..samples.max(1) {
-                    let ray = camera.ray(x + rng.next_f32(), y + rng.next_f32());
-                    let first = geometry.intersect(&ray).map(|hit| (geometry.surface_point(&ray, &hit), hit));
-                    albedo += albedo_of(first.as_ref());
+                    let first = first_hit(&camera.ray(x + rng.next_f32(), y + rng.next_f32()));
+                    albedo += first.albedo;
+                    centre.light |= first.light;
                 }
-                let albedo = albedo / samples.max(1) as f32;
-                match centre_surface {
-                    // A light's pixels, its edges included, are exact but for their coverage
-                    // noise, and far brighter than what surrounds them: never filtered.
-                    _ if sees_light => (albedo, Vec3::ZERO, Vec3::ZERO, 0.0),
-                    Some((surface, _)) => {
-                        let normal = if surface.front { surface.normal } else { -surface.normal };
-                        let beside = camera.ray(x + 1.5, y + 0.5).dir;
-                        let footprint = (surface.position - centre.origin).length() * (beside - centre.dir).length();
-                        (albedo, normal, surface.position, footprint)
-                    }
-                    None => (albedo, Vec3::ZERO, Vec3::ZERO, 0.0),
-                }
+                centre.albedo = albedo / samples.max(1) as f32;
+                guide_pixel(camera, i % w, i / w, &centre)
             })
             .collect();
+        Self::from_pixels(w, h, pixels)
+    }
+
+    /// The guide of one sample per pixel: each pixel's own camera ray's first hit (as
+    /// [`crate::render::Renderer::render_frame_guided`] returns them, row-major).
+    pub fn from_first_hits(camera: &Camera, width: u32, height: u32, hits: &[FirstHit]) -> Guide {
+        assert_eq!(hits.len(), (width * height) as usize, "one first hit per pixel");
+        let pixels =
+            hits.par_iter().enumerate().map(|(i, hit)| guide_pixel(camera, i as u32 % width, i as u32 / width, hit));
+        Self::from_pixels(width, height, pixels.collect())
+    }
+
+    fn from_pixels(width: u32, height: u32, pixels: Vec<(Vec3, Vec3, Vec3, f32)>) -> Guide {
         Guide {
-            width: w,
-            height: h,
+            width,
+            height,
             albedo: pixels.iter().map(|p| p.0).collect(),
             normal: pixels.iter().map(|p| p.1).collect(),
             position: pixels.iter().map(|p| p.2).collect(),
             footprint: pixels.iter().map(|p| p.3).collect(),
         }
     }
+}
+
+/// Pixel `(x, y)`'s albedo, normal, position and footprint (the width of a pixel at the
+/// hit's distance) from its first hit.
+fn guide_pixel(camera: &Camera, x: u32, y: u32, hit: &FirstHit) -> (Vec3, Vec3, Vec3, f32) {
+    if hit.light || hit.normal == Vec3::ZERO {
+        // A light's pixels, its edges included, are exact but for their coverage noise, and
+        // far brighter than what surrounds them: never filtered; nor is the sky.
+        return (hit.albedo, Vec3::ZERO, Vec3::ZERO, 0.0);
+    }
+    let (x, y) = (x as f32, y as f32);
+    let centre = camera.ray(x + 0.5, y + 0.5);
+    let beside = camera.ray(x + 1.5, y + 0.5).dir;
+    let footprint = (hit.position - centre.origin).length() * (beside - centre.dir).length();
+    (hit.albedo, hit.normal, hit.position, footprint)
 }
