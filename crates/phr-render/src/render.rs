@@ -4,6 +4,8 @@
 //! A frame is cut into 16×16 tiles rendered as rayon tasks (tiles keep neighbouring rays,
 //! which visit the same nodes, on one core). Each pixel's random numbers depend only on
 //! (seed, frame, pixel) ([`Pcg32::for_pixel`]), so the image is the same for any thread count.
+//! Where the camera ray falls in its pixel follows a low-discrepancy sequence over the frames
+//! ([`Pcg32::pixel_jitter`]), so edges anti-alias with few samples.
 
 use crate::camera::{Camera, CameraDesc};
 use crate::geometry::Geometry;
@@ -109,8 +111,9 @@ impl Renderer<'_> {
                 let mut rays = 0u64;
                 for y in y0..(y0 + TILE).min(self.height) {
                     for x in x0..(x0 + TILE).min(self.width) {
-                        let mut rng = Pcg32::for_pixel(self.seed, frame, y * self.width + x);
-                        let (jx, jy) = (rng.next_f32(), rng.next_f32());
+                        let pixel = y * self.width + x;
+                        let mut rng = Pcg32::for_pixel(self.seed, frame, pixel);
+                        let (jx, jy) = Pcg32::pixel_jitter(self.seed, frame, pixel);
                         let ray = self.camera.ray(x as f32 + jx, y as f32 + jy);
                         let (colour, traced) = shade(ray, &mut rng);
                         out.push(colour);

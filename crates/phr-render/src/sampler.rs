@@ -31,6 +31,30 @@ impl Pcg32 {
         rng
     }
 
+    /// Where in pixel `pixel` frame `frame` puts its camera ray, in [0, 1)²: point `frame` of
+    /// the R2 sequence (Roberts 2018, the 2D golden-ratio sequence), shifted by a random
+    /// offset of the pixel's own (Cranley–Patterson rotation), wrapped. Every frame's point
+    /// is uniform in the pixel (the offset is), so the estimate stays unbiased; a pixel's
+    /// successive frames cover it evenly, so an edge across it (a lamp's against a ceiling)
+    /// converges much faster than with independent points.
+    pub fn pixel_jitter(seed: u64, frame: u32, pixel: u32) -> (f32, f32) {
+        const A1: f64 = 0.754_877_666_246_692_8; // 1/φ₂, φ₂ the plastic number
+        const A2: f64 = 0.569_840_290_998_053_3; // 1/φ₂²
+        let mut rotation = Self::for_pixel(seed ^ 0x2545_f491_4f6c_dd1d, u32::MAX, pixel);
+        let (ox, oy) = (f64::from(rotation.next_f32()), f64::from(rotation.next_f32()));
+        let n = f64::from(frame);
+        let wrap = |x: f64| {
+            let x = x.fract() as f32;
+            // Rounding to f32 may give 1.0.
+            if x >= 1.0 {
+                0.0
+            } else {
+                x
+            }
+        };
+        (wrap(0.5 + n * A1 + ox), wrap(0.5 + n * A2 + oy))
+    }
+
     /// The generator of one pixel in one frame of a render with a user seed.
     pub fn for_pixel(seed: u64, frame: u32, pixel: u32) -> Self {
         let key = mix64(seed ^ mix64(((frame as u64) << 32) | pixel as u64));
