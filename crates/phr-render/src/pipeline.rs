@@ -593,7 +593,7 @@ impl FramePipeline {
     }
 
     /// One sample per pixel in the current view mode; returns the pixels, their first hits
-    /// if `guided` (colour mode only), and the rays traced.
+    /// if `guided` (which the caller asks for in colour mode only), and the rays traced.
     fn render(&self, guided: bool) -> (Vec<Vec3>, Option<Vec<FirstHit>>, u64) {
         let s = &self.settings;
         let size = RenderSettings { width: s.width, height: s.height, spp: 1, max_depth: s.max_depth.max(1) };
@@ -603,7 +603,7 @@ impl FramePipeline {
         // while animating, it keeps the noise from freezing in place.
         let frame = self.frame as u32;
         let geometry = &self.geometry;
-        if guided && s.mode == ViewMode::Colour {
+        if guided {
             let (pixels, first_hits, stats) = renderer.render_frame_guided(frame);
             return (pixels, Some(first_hits), stats.rays);
         }

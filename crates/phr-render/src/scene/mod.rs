@@ -30,20 +30,6 @@ pub enum Background {
     Environment(std::sync::Arc<crate::environment::EnvironmentMap>),
 }
 
-impl PartialEq for Background {
-    /// Colours by value, environment maps by identity (the same loaded map).
-    fn eq(&self, other: &Self) -> bool {
-        match (self, other) {
-            (Background::Constant(a), Background::Constant(b)) => a == b,
-            (Background::Gradient { bottom: a, top: b }, Background::Gradient { bottom: c, top: d }) => {
-                a == c && b == d
-            }
-            (Background::Environment(a), Background::Environment(b)) => std::sync::Arc::ptr_eq(a, b),
-            _ => false,
-        }
-    }
-}
-
 impl Background {
     #[inline]
     pub fn radiance(&self, unit_dir: Vec3) -> Vec3 {
