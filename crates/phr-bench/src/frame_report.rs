@@ -38,14 +38,25 @@ pub struct FrameRunInfo<'a> {
 
 /// Writes `frame.csv`, `frame.json` and `frame.md` to `dir`.
 pub fn write_frame_report(dir: &Path, info: &FrameRunInfo, rows: &[FrameRow]) -> Result<()> {
+    write_report_files(
+        dir,
+        &[
+            ("frame.csv", csv(rows)),
+            ("frame.json", serde_json::to_string_pretty(rows)?),
+            ("frame.md", markdown(info, rows)),
+        ],
+    )
+}
+
+/// Writes each `(name, text)` to `dir/name` (each file whole or not at all), creating `dir`.
+pub fn write_report_files(dir: &Path, files: &[(&str, String)]) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let write = |name: &str, text: String| -> Result<()> {
+    for (name, text) in files {
         let path = dir.join(name);
-        write_atomically(&path, |tmp| std::fs::write(tmp, &text)).with_context(|| format!("writing {}", path.display()))
-    };
-    write("frame.csv", csv(rows))?;
-    write("frame.json", serde_json::to_string_pretty(rows)?)?;
-    write("frame.md", markdown(info, rows))
+        write_atomically(&path, |tmp| std::fs::write(tmp, text))
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
 }
 
 fn mitsuba_ms(run: &MitsubaRun) -> String {
@@ -116,12 +127,7 @@ pub fn markdown(info: &FrameRunInfo, rows: &[FrameRow]) -> String {
         })
         .collect();
     if !skipped.is_empty() {
-        s.push_str(
-            "\nMitsuba 3 skipped (install: `python3 -m pip install mitsuba numpy`, `apt-get install libllvm19`; ",
-        );
-        s.push_str(
-            "`DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so` is set automatically when present):\n",
-        );
+        let _ = writeln!(s, "\nMitsuba 3 skipped ({}):", crate::mitsuba::INSTALL);
         s.push_str(&skipped.join("\n"));
         s.push('\n');
     }

@@ -9,6 +9,8 @@
 //!   against;
 //! - [`throughput`]: the one Mrays/s measurement and the one work-per-ray count;
 //! - [`peer`]: exporting triangles and rays to a Python peer and reading its JSON;
+//! - [`quality`], [`quality_bench`], [`quality_report`]: `phr bench-quality` (RMSE at equal
+//!   time against a converged reference: our estimators and Mitsuba 3's `path`);
 //! - [`ray_bench`], [`ray_report`]: `phr bench-rays` (our traversals against Embree);
 //! - [`build_bench`]: `phr bench-build` (every builder: build time, tree quality, Mrays/s);
 //! - [`cut_cost`]: `phr bench-cut-cost` (does PHR's `Σ |cut|` predict its build time?);
@@ -25,6 +27,9 @@ pub mod frame_report;
 pub mod mitsuba;
 pub mod oracle;
 pub mod peer;
+pub mod quality;
+pub mod quality_bench;
+pub mod quality_report;
 pub mod ray_bench;
 pub mod ray_report;
 pub mod rays;

@@ -21,6 +21,10 @@ use std::process::Command;
 /// silently compared.
 pub const VARIANT: &str = "llvm_ad_rgb";
 
+/// How to get the peer, for reports that skipped it.
+pub const INSTALL: &str = "install: `python3 -m pip install mitsuba numpy`, `apt-get install libllvm19`; \
+    `DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so` is set automatically when present";
+
 /// Where Debian's `libllvm19` puts the library drjit needs.
 pub const DEBIAN_LIBLLVM: &str = "/usr/lib/x86_64-linux-gnu/libLLVM-19.so";
 
@@ -80,9 +84,6 @@ impl MitsubaPeer {
         threads: usize,
         work: &Path,
     ) -> Result<MitsubaFrame> {
-        if !self.tool.is_file() {
-            bail!("{} not found", self.tool.display());
-        }
         let text = std::fs::read_to_string(scene_file).with_context(|| format!("reading {}", scene_file.display()))?;
         let scene = thesis_frame_scene(serde_json::from_str(&text)?, res)
             .with_context(|| format!("{} has no view", scene_file.display()))?;
@@ -92,10 +93,50 @@ impl MitsubaPeer {
         std::fs::write(&local, serde_json::to_string_pretty(&scene)?)?;
         let prefix = work.join(format!("{name}_{res}_mitsuba"));
         let passes = (frames + 1).to_string();
+        let args = ["--integrator", "rtiow", "--spp", &passes, "--passes", &passes, "--res", &format!("{res}x{res}")];
+        parse_meta(&self.run_script(&local, &prefix, &args, threads)?, frames)
+    }
+
+    /// Mitsuba 3's own `path` integrator (light sampling with MIS, Russian roulette: `--rr`)
+    /// on `scene_file` as it is, `spp` samples in `passes` passes (the first includes the
+    /// JIT, so at least two give a warm timing), on `threads` threads, written to `work`.
+    pub fn path_render(
+        &self,
+        scene_file: &Path,
+        spp: u32,
+        passes: u32,
+        threads: usize,
+        work: &Path,
+    ) -> Result<PathRender> {
+        std::fs::create_dir_all(work)?;
+        let prefix = work.join(format!("{}_path_{spp}spp", crate::suite::scene_name(scene_file)));
+        let (spp_arg, passes_arg) = (spp.to_string(), passes.to_string());
+        let args = ["--integrator", "path", "--rr", "--spp", &spp_arg, "--passes", &passes_arg];
+        let meta = self.run_script(scene_file, &prefix, &args, threads)?;
+        let variant = meta["variant"].as_str().unwrap_or("unknown");
+        if variant != VARIANT {
+            bail!("Mitsuba ran the {variant} variant, not {VARIANT}");
+        }
+        let warm_ms_per_spp =
+            meta["timings"]["ms_per_spp_warm"].as_f64().context("render_reference.py wrote no warm timings")?;
+        Ok(PathRender { spp, warm_ms_per_spp, exr: prefix.with_extension("exr") })
+    }
+
+    /// Runs the script on `scene_file` in the fast variant with `args`, writing `prefix.*`;
+    /// returns the JSON side-car it wrote.
+    fn run_script(&self, scene_file: &Path, prefix: &Path, args: &[&str], threads: usize) -> Result<Value> {
+        if !self.tool.is_file() {
+            bail!("{} not found", self.tool.display());
+        }
+        if threads < 2 {
+            // Mitsuba 3.9.1 renders, then never returns from writing its EXR with a pool of
+            // one thread.
+            bail!("the script hangs writing its image on 1 thread (Mitsuba 3.9.1); run with --threads 2 or more");
+        }
         let mut cmd = Command::new(&self.python);
-        cmd.arg(&self.tool).arg(&local).arg("-o").arg(&prefix);
-        cmd.args(["--variant", VARIANT, "--integrator", "rtiow", "--spp", &passes, "--passes", &passes]);
-        cmd.args(["--res", &format!("{res}x{res}"), "--threads", &threads.to_string(), "--quiet"]);
+        cmd.arg(&self.tool).arg(scene_file).arg("-o").arg(prefix);
+        cmd.args(["--variant", VARIANT]).args(args);
+        cmd.args(["--threads", &threads.to_string(), "--quiet"]);
         cmd.arg("--scenes-dir").arg(&self.scenes_dir);
         if std::env::var_os("DRJIT_LIBLLVM_PATH").is_none() && Path::new(DEBIAN_LIBLLVM).is_file() {
             cmd.env("DRJIT_LIBLLVM_PATH", DEBIAN_LIBLLVM);
@@ -106,9 +147,20 @@ impl MitsubaPeer {
             let last = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("no message");
             bail!("render_reference.py failed: {}", last.trim());
         }
-        let meta: Value = serde_json::from_str(&std::fs::read_to_string(prefix.with_extension("json"))?)?;
-        parse_meta(&meta, frames)
+        let side_car = prefix.with_extension("json");
+        let text = std::fs::read_to_string(&side_car).with_context(|| format!("reading {}", side_car.display()))?;
+        Ok(serde_json::from_str(&text)?)
     }
+}
+
+/// An image of Mitsuba's `path` integrator ([`MitsubaPeer::path_render`]).
+#[derive(Clone, Debug)]
+pub struct PathRender {
+    pub spp: u32,
+    /// Mean wall-clock ms per sample of the warm passes (the first, with the JIT, left out).
+    pub warm_ms_per_spp: f64,
+    /// The mean image (linear OpenEXR).
+    pub exr: PathBuf,
 }
 
 /// The scene JSON Mitsuba renders: the file's first view as its camera, `res`², and the

@@ -6,6 +6,7 @@ mod bench;
 mod bench_build;
 mod bench_cut_cost;
 mod bench_frame;
+mod bench_quality;
 mod bench_rays;
 mod bench_tune;
 mod info;
@@ -41,6 +42,9 @@ enum Command {
     BenchBuild(bench_build::BenchBuildArgs),
     /// The thesis's frame on the suite, ours against Mitsuba 3 (llvm variant) in one run.
     BenchFrame(bench_frame::BenchFrameArgs),
+    /// Image quality at equal time: RMSE of our estimators and Mitsuba 3's path tracer
+    /// against converged references.
+    BenchQuality(bench_quality::BenchQualityArgs),
     /// Ray throughput: binary vs wide (SIMD) BVH traversal vs Embree, on the shared scenes.
     BenchRays(bench_rays::BenchRaysArgs),
     /// Correlation of PHR's build cost Σ|cut| with its build time over a sweep of α and δ.
@@ -89,6 +93,7 @@ fn main() -> ExitCode {
         Some(Command::Bench(args)) => bench::run(&args),
         Some(Command::BenchBuild(args)) => bench_build::run(&args),
         Some(Command::BenchFrame(args)) => bench_frame::run(&args),
+        Some(Command::BenchQuality(args)) => bench_quality::run(&args),
         Some(Command::BenchRays(args)) => bench_rays::run(&args),
         Some(Command::BenchCutCost(args)) => bench_cut_cost::run(&args),
         Some(Command::Animate(args)) => animate::run(&args),

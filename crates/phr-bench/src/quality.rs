@@ -1,0 +1,172 @@
+//! Equal-time image quality: what each estimator makes of the same wall-clock budget,
+//! measured as the RMSE against a converged reference (`phr bench-quality`).
+//!
+//! Ours renders 1-spp frames into a film, as the viewer and `phr render` do, until the
+//! budget is spent; the denoised variant reserves the time of its guide and filter (measured
+//! once per scene) and counts it. Mitsuba 3's `path` integrator (light sampling with MIS and
+//! Russian roulette, `llvm_ad_rgb`) gets the number of samples its warm rate fits into the
+//! same budget ([`crate::mitsuba`]). Each image is scored by [`rmse`] over all pixels and
+//! channels, the RMSE of `compare_images.py`.
+
+use anyhow::{bail, Context, Result};
+use glam::Vec3;
+use phr_render::denoise::{Atrous, Guide, GUIDE_SAMPLES};
+use phr_render::film::Film;
+use phr_render::render::Renderer;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// The ways of making an image that are compared.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// The thesis's estimator: light only from paths that hit an emitter or escape.
+    Implicit,
+    /// Light sampling with MIS and Russian roulette (`phr render --denoiser none`).
+    Path,
+    /// The same, denoised by the à-trous filter: `phr render`'s default output.
+    PathAtrous,
+    /// Mitsuba 3's `path` integrator (NEE + MIS + Russian roulette), `llvm_ad_rgb`.
+    MitsubaPath,
+}
+
+impl Method {
+    pub const OURS: [Method; 3] = [Method::Implicit, Method::Path, Method::PathAtrous];
+
+    pub fn label(self) -> &'static str {
+        match self {
+            Method::Implicit => "ours, implicit (the thesis's)",
+            Method::Path => "ours, path (NEE + MIS + RR)",
+            Method::PathAtrous => "ours, path + à-trous",
+            Method::MitsubaPath => "Mitsuba 3 path (llvm_ad_rgb)",
+        }
+    }
+
+    /// A file-name word.
+    pub fn slug(self) -> &'static str {
+        match self {
+            Method::Implicit => "implicit",
+            Method::Path => "path",
+            Method::PathAtrous => "path-atrous",
+            Method::MitsubaPath => "mitsuba-path",
+        }
+    }
+}
+
+/// An image made within a budget.
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    pub spp: u32,
+    /// Wall-clock ms: the frames, plus the guide and the filter when denoised.
+    pub ms: f64,
+    pub image: Vec<Vec3>,
+}
+
+/// What the denoised output adds after the last frame: the guide's camera rays (up to
+/// [`GUIDE_SAMPLES`] per pixel, as many as there are frames) and the filter. Measured on
+/// `renderer` once, as the faster of two runs (the first is cold); what [`render_within`]
+/// reserves.
+#[derive(Clone, Copy, Debug)]
+pub struct DenoiseCost {
+    pub filter_ms: f64,
+    pub guide_ms_per_sample: f64,
+}
+
+impl DenoiseCost {
+    pub fn measure(renderer: &Renderer) -> Self {
+        let mut film = Film::new(renderer.width, renderer.height);
+        film.add_frame(&renderer.render_frame(0).0);
+        let time = |f: &dyn Fn()| {
+            let run = || {
+                let start = Instant::now();
+                f();
+                start.elapsed().as_secs_f64() * 1e3
+            };
+            run().min(run())
+        };
+        let guide = Guide::render(renderer, 1);
+        let filter_ms = time(&|| drop(Atrous::default().denoise(&film.mean(), &film.variance_of_mean(), &guide)));
+        let guide_ms = time(&|| drop(Guide::render(renderer, GUIDE_SAMPLES)));
+        Self { filter_ms, guide_ms_per_sample: guide_ms / f64::from(GUIDE_SAMPLES) }
+    }
+
+    /// After `spp` frames.
+    pub fn ms(&self, spp: u32) -> f64 {
+        self.filter_ms + self.guide_ms_per_sample * f64::from(spp.clamp(1, GUIDE_SAMPLES))
+    }
+}
+
+/// `phr render`'s default filtering of `film` after `spp` frames.
+fn denoise(renderer: &Renderer, film: &Film, spp: u32) -> Vec<Vec3> {
+    let guide = Guide::render(renderer, spp.min(GUIDE_SAMPLES));
+    Atrous::default().denoise(&film.mean(), &film.variance_of_mean(), &guide)
+}
+
+/// Renders 1-spp frames (frame `k` is sample `k`) until `budget` is spent, stopping where
+/// the total lands closest to it (at least one frame). With `denoise`, its time after the
+/// last frame is part of the total, and the filter then runs.
+pub fn render_within(renderer: &Renderer, budget: Duration, denoise_cost: Option<&DenoiseCost>) -> Rendered {
+    let budget_ms = budget.as_secs_f64() * 1e3;
+    let reserve = |spp: u32| denoise_cost.map_or(0.0, |d| d.ms(spp));
+    let mut film = Film::new(renderer.width, renderer.height);
+    let start = Instant::now();
+    let mut spp = 0u32;
+    loop {
+        film.add_frame(&renderer.render_frame(spp).0);
+        spp += 1;
+        let elapsed = start.elapsed().as_secs_f64() * 1e3;
+        // Totals if we stop now, and after one more frame (of the mean length so far): go on
+        // while the second lands closer to the budget.
+        let now = elapsed + reserve(spp);
+        let next = elapsed + elapsed / f64::from(spp) + reserve(spp + 1);
+        if 0.5 * (now + next) >= budget_ms {
+            break;
+        }
+    }
+    let image = match denoise_cost {
+        Some(_) => denoise(renderer, &film, spp),
+        None => film.mean(),
+    };
+    Rendered { spp, ms: start.elapsed().as_secs_f64() * 1e3, image }
+}
+
+/// The RMSE of `test` against `reference` over all pixels and channels (as
+/// `compare_images.py` computes it), in f64.
+pub fn rmse(test: &[Vec3], reference: &[Vec3]) -> f64 {
+    assert_eq!(test.len(), reference.len(), "images of different sizes");
+    let sum: f64 = test
+        .iter()
+        .zip(reference)
+        .map(|(t, r)| {
+            let d = (*t - *r).as_dvec3();
+            d.length_squared()
+        })
+        .sum();
+    (sum / (3 * test.len().max(1)) as f64).sqrt()
+}
+
+/// Reads a linear image (OpenEXR, the references' format) as rows from the top: (width,
+/// height, pixels).
+pub fn read_linear_image(path: &Path) -> Result<(u32, u32, Vec<Vec3>)> {
+    let image = image::open(path).with_context(|| format!("reading {}", path.display()))?.into_rgb32f();
+    let (w, h) = image.dimensions();
+    let pixels: Vec<Vec3> = image.pixels().map(|p| Vec3::from(p.0)).collect();
+    if let Some(i) = pixels.iter().position(|p| !p.is_finite()) {
+        bail!("{}: pixel ({}, {}) is not finite", path.display(), i as u32 % w, i as u32 / w);
+    }
+    Ok((w, h, pixels))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rmse_over_pixels_and_channels() {
+        let r = vec![Vec3::ZERO; 2];
+        assert_eq!(rmse(&r, &r), 0.0);
+        // Squared errors 1, 4, 0 and 0, 0, 7: mean 2, RMSE √2.
+        let t = vec![Vec3::new(1.0, -2.0, 0.0), Vec3::new(0.0, 0.0, 7.0f32.sqrt())];
+        assert!((rmse(&t, &r) - 2f64.sqrt()).abs() < 1e-6);
+    }
+}
