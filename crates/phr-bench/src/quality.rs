@@ -10,7 +10,7 @@
 
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
-use phr_render::denoise::{Atrous, Guide, GUIDE_SAMPLES};
+use phr_render::denoise::{oidn, Filter, Guide, GUIDE_SAMPLES};
 use phr_render::film::Film;
 use phr_render::render::Renderer;
 use std::path::Path;
@@ -26,18 +26,34 @@ pub enum Method {
     Path,
     /// The same, denoised by the à-trous filter: `phr render`'s default output.
     PathAtrous,
+    /// The same, denoised by Intel Open Image Denoise (`--denoiser oidn`, builds with it).
+    PathOidn,
     /// Mitsuba 3's `path` integrator (NEE + MIS + Russian roulette), `llvm_ad_rgb`.
     MitsubaPath,
 }
 
 impl Method {
-    pub const OURS: [Method; 3] = [Method::Implicit, Method::Path, Method::PathAtrous];
+    /// Our outputs in this build (with OIDN when it has it).
+    pub fn ours() -> Vec<Method> {
+        let all = [Method::Implicit, Method::Path, Method::PathAtrous, Method::PathOidn];
+        all.into_iter().filter(|&m| m != Method::PathOidn || oidn::AVAILABLE).collect()
+    }
+
+    /// The filter of a denoised output.
+    pub fn filter(self) -> Option<Filter> {
+        match self {
+            Method::PathAtrous => Some(Filter::Atrous),
+            Method::PathOidn => Some(Filter::Oidn),
+            _ => None,
+        }
+    }
 
     pub fn label(self) -> &'static str {
         match self {
             Method::Implicit => "ours, implicit (the thesis's)",
             Method::Path => "ours, path (NEE + MIS + RR)",
             Method::PathAtrous => "ours, path + à-trous",
+            Method::PathOidn => "ours, path + OIDN",
             Method::MitsubaPath => "Mitsuba 3 path (llvm_ad_rgb)",
         }
     }
@@ -48,6 +64,7 @@ impl Method {
             Method::Implicit => "implicit",
             Method::Path => "path",
             Method::PathAtrous => "path-atrous",
+            Method::PathOidn => "path-oidn",
             Method::MitsubaPath => "mitsuba-path",
         }
     }
@@ -62,32 +79,35 @@ pub struct Rendered {
     pub image: Vec<Vec3>,
 }
 
-/// What the denoised output adds after the last frame: the guide's camera rays (up to
+/// What a denoised output adds after the last frame: the guide's camera rays (up to
 /// [`GUIDE_SAMPLES`] per pixel, as many as there are frames) and the filter. Measured on
 /// `renderer` once, as the faster of two runs (the first is cold); what [`render_within`]
 /// reserves.
 #[derive(Clone, Copy, Debug)]
 pub struct DenoiseCost {
+    pub filter: Filter,
     pub filter_ms: f64,
     pub guide_ms_per_sample: f64,
 }
 
 impl DenoiseCost {
-    pub fn measure(renderer: &Renderer) -> Self {
+    pub fn measure(renderer: &Renderer, filter: Filter) -> Result<Self, String> {
         let mut film = Film::new(renderer.width, renderer.height);
         film.add_frame(&renderer.render_frame(0).0);
-        let time = |f: &dyn Fn()| {
+        let time = |f: &dyn Fn() -> Result<(), String>| -> Result<f64, String> {
             let run = || {
                 let start = Instant::now();
-                f();
-                start.elapsed().as_secs_f64() * 1e3
+                f().map(|()| start.elapsed().as_secs_f64() * 1e3)
             };
-            run().min(run())
+            Ok(run()?.min(run()?))
         };
         let guide = Guide::render(renderer, 1);
-        let filter_ms = time(&|| drop(Atrous::default().denoise(&film.mean(), &film.variance_of_mean(), &guide)));
-        let guide_ms = time(&|| drop(Guide::render(renderer, GUIDE_SAMPLES)));
-        Self { filter_ms, guide_ms_per_sample: guide_ms / f64::from(GUIDE_SAMPLES) }
+        let filter_ms = time(&|| filter.apply(&film, &guide).map(drop))?;
+        let guide_ms = time(&|| {
+            let _ = Guide::render(renderer, GUIDE_SAMPLES);
+            Ok(())
+        })?;
+        Ok(Self { filter, filter_ms, guide_ms_per_sample: guide_ms / f64::from(GUIDE_SAMPLES) })
     }
 
     /// After `spp` frames.
@@ -96,18 +116,12 @@ impl DenoiseCost {
     }
 }
 
-/// `phr render`'s default filtering of `film` after `spp` frames.
-fn denoise(renderer: &Renderer, film: &Film, spp: u32) -> Vec<Vec3> {
-    let guide = Guide::render(renderer, spp.min(GUIDE_SAMPLES));
-    Atrous::default().denoise(&film.mean(), &film.variance_of_mean(), &guide)
-}
-
 /// Renders 1-spp frames (frame `k` is sample `k`) until `budget` is spent, stopping where
 /// the total lands closest to it (at least one frame). With `denoise`, its time after the
-/// last frame is part of the total, and the filter then runs.
-pub fn render_within(renderer: &Renderer, budget: Duration, denoise_cost: Option<&DenoiseCost>) -> Rendered {
+/// last frame is part of the total, and its filter then runs.
+pub fn render_within(renderer: &Renderer, budget: Duration, denoise: Option<&DenoiseCost>) -> Result<Rendered, String> {
     let budget_ms = budget.as_secs_f64() * 1e3;
-    let reserve = |spp: u32| denoise_cost.map_or(0.0, |d| d.ms(spp));
+    let reserve = |spp: u32| denoise.map_or(0.0, |d| d.ms(spp));
     let mut film = Film::new(renderer.width, renderer.height);
     let start = Instant::now();
     let mut spp = 0u32;
@@ -123,11 +137,11 @@ pub fn render_within(renderer: &Renderer, budget: Duration, denoise_cost: Option
             break;
         }
     }
-    let image = match denoise_cost {
-        Some(_) => denoise(renderer, &film, spp),
+    let image = match denoise {
+        Some(d) => d.filter.finish(renderer, &film, spp)?.0,
         None => film.mean(),
     };
-    Rendered { spp, ms: start.elapsed().as_secs_f64() * 1e3, image }
+    Ok(Rendered { spp, ms: start.elapsed().as_secs_f64() * 1e3, image })
 }
 
 /// The RMSE of `test` against `reference` over all pixels and channels (as

@@ -1,5 +1,5 @@
 //! `phr bench-quality`: per scene and time budget, the RMSE against the scene's converged
-//! reference of our three outputs ([`Method::OURS`]) and of Mitsuba 3's `path` integrator,
+//! reference of our outputs ([`Method::ours`]) and of Mitsuba 3's `path` integrator,
 //! with the images, as CSV, JSON and a Markdown table.
 //!
 //! A scene file `DIR/scenes/NAME.json` has its reference at `DIR/images/NAME.exr`, the
@@ -90,7 +90,10 @@ pub fn measure_scene(scene_file: &Path, options: &QualityOptions, progress: &dyn
     let lights = LightSet::new(&geometry, &scene.materials, &scene.background);
     let implicit = Renderer::new(&scene, &geometry, &view, &settings, None);
     let path = Renderer::new(&scene, &geometry, &view, &settings, Some(&lights));
-    let denoise = DenoiseCost::measure(&path);
+    let mut costs = Vec::new();
+    for filter in Method::ours().into_iter().filter_map(Method::filter) {
+        costs.push(DenoiseCost::measure(&path, filter).map_err(anyhow::Error::msg)?);
+    }
     let images = options.out.join("images");
     std::fs::create_dir_all(&images).with_context(|| format!("creating {}", images.display()))?;
     let save = |budget: f64, method: Method, pixels: &[Vec3]| -> Result<()> {
@@ -101,14 +104,11 @@ pub fn measure_scene(scene_file: &Path, options: &QualityOptions, progress: &dyn
 
     let mut rows = Vec::new();
     for &budget in &options.budgets {
-        for method in Method::OURS {
+        for method in Method::ours() {
             progress.status(format!("{name}, {budget} s: {}", method.label()));
-            let (renderer, cost) = match method {
-                Method::Implicit => (&implicit, None),
-                Method::Path => (&path, None),
-                _ => (&path, Some(&denoise)),
-            };
-            let r = render_within(renderer, Duration::from_secs_f64(budget), cost);
+            let renderer = if method == Method::Implicit { &implicit } else { &path };
+            let cost = method.filter().and_then(|f| costs.iter().find(|c| c.filter == f));
+            let r = render_within(renderer, Duration::from_secs_f64(budget), cost).map_err(anyhow::Error::msg)?;
             save(budget, method, &r.image)?;
             let outcome = Outcome::Ran { spp: r.spp, ms: r.ms, rmse: rmse(&r.image, &reference) };
             rows.push(QualityRow { scene: name.clone(), budget_s: budget, method, outcome });

@@ -5,13 +5,13 @@
 use crate::pool::Pool;
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use phr_bvh::Builder;
-use phr_render::denoise::{Atrous, Guide, GUIDE_SAMPLES};
+use phr_render::denoise::{oidn, Filter};
 use phr_render::film::Film;
 use phr_render::geometry::Geometry;
 use phr_render::lights::LightSet;
 use phr_render::render::Renderer;
 use phr_render::scene::RenderSettings;
-use pyo3::exceptions::{PyFileNotFoundError, PyValueError};
+use pyo3::exceptions::{PyFileNotFoundError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::Mutex;
@@ -112,7 +112,7 @@ impl Scene {
     /// seed 0, integrator `path`: light sampling with MIS; `implicit`: the thesis's). Returns
     /// linear radiance, float32 of shape (height, width, 3), top row first: the raw mean, as
     /// `phr render --linear` writes it, or with `denoiser="atrous"` what `phr render --out`
-    /// writes.
+    /// writes (`"oidn"`: Intel Open Image Denoise, in builds with the cargo feature `oidn`).
     #[pyo3(signature = (width = None, height = None, spp = None, view = None, seed = 0, max_depth = None, builder = "sbvh", integrator = "path", denoiser = "none", threads = None))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
@@ -151,37 +151,42 @@ impl Scene {
             "implicit" => false,
             other => return Err(PyValueError::new_err(format!("integrator {other:?}: use \"path\" or \"implicit\""))),
         };
-        let denoise = match denoiser {
-            "none" => false,
-            "atrous" => true,
-            other => return Err(PyValueError::new_err(format!("denoiser {other:?}: use \"none\" or \"atrous\""))),
+        let filter = match denoiser {
+            "none" => None,
+            "atrous" => Some(Filter::Atrous),
+            "oidn" if oidn::AVAILABLE => Some(Filter::Oidn),
+            "oidn" => return Err(PyValueError::new_err(format!("denoiser \"oidn\": {}", oidn::MISSING))),
+            other => {
+                return Err(PyValueError::new_err(format!("denoiser {other:?}: use \"none\", \"atrous\" or \"oidn\"")))
+            }
         };
         let pool = Pool::new(threads)?;
-        let pixels = py.detach(|| {
-            pool.install(|| {
-                let mut cached = self.geometry.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-                if cached.as_ref().is_none_or(|(b, _)| *b != builder) {
-                    let mut geometry = Geometry::new(&self.scene);
-                    geometry.build(&builder);
-                    *cached = Some((builder, geometry));
-                }
-                let (_, geometry) = cached.as_ref().expect("built above");
-                let lights =
-                    sample_lights.then(|| LightSet::new(geometry, &self.scene.materials, &self.scene.background));
-                let renderer =
-                    Renderer::new(&self.scene, geometry, &camera, &settings, lights.as_ref()).with_seed(seed);
-                let mut film = Film::new(settings.width, settings.height);
-                for frame in 0..settings.spp {
-                    film.add_frame(&renderer.render_frame(frame).0);
-                }
-                let mut image = film.mean();
-                if denoise {
-                    let guide = Guide::render(&renderer, settings.spp.min(GUIDE_SAMPLES));
-                    image = Atrous::default().denoise(&image, &film.variance_of_mean(), &guide);
-                }
-                image.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>()
-            })
-        })?;
+        let pixels = py
+            .detach(|| {
+                pool.install(|| {
+                    let mut cached = self.geometry.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+                    if cached.as_ref().is_none_or(|(b, _)| *b != builder) {
+                        let mut geometry = Geometry::new(&self.scene);
+                        geometry.build(&builder);
+                        *cached = Some((builder, geometry));
+                    }
+                    let (_, geometry) = cached.as_ref().expect("built above");
+                    let lights =
+                        sample_lights.then(|| LightSet::new(geometry, &self.scene.materials, &self.scene.background));
+                    let renderer =
+                        Renderer::new(&self.scene, geometry, &camera, &settings, lights.as_ref()).with_seed(seed);
+                    let mut film = Film::new(settings.width, settings.height);
+                    for frame in 0..settings.spp {
+                        film.add_frame(&renderer.render_frame(frame).0);
+                    }
+                    let image = match filter {
+                        Some(filter) => filter.finish(&renderer, &film, settings.spp)?.0,
+                        None => film.mean(),
+                    };
+                    Ok::<_, String>(image.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>())
+                })
+            })?
+            .map_err(PyRuntimeError::new_err)?;
         let (w, h) = (settings.width as usize, settings.height as usize);
         PyArray1::from_vec(py, pixels).reshape([h, w, 3])
     }

@@ -22,7 +22,7 @@
 use crate::animation::Animator;
 use crate::camera::Camera;
 use crate::camera::CameraDesc;
-use crate::denoise::{Atrous, Guide, Temporal};
+use crate::denoise::{Filter, Guide, Temporal};
 use crate::film::Film;
 use crate::geometry::Geometry;
 use crate::integrator::FirstHit;
@@ -116,9 +116,9 @@ pub struct PipelineSettings {
     pub explicit_lights: bool,
     /// Show the image denoised ([`crate::denoise`]), in colour mode: each frame through
     /// [`Temporal`] (SVGF) while the view moves and for its first still frames, then the
-    /// accumulated image through [`Atrous`] at [`ACCUMULATED_DENOISE_FROM`] samples and
+    /// accumulated image through this filter at [`ACCUMULATED_DENOISE_FROM`] samples and
     /// each power of two after (then every 64).
-    pub denoise: bool,
+    pub denoise: Option<Filter>,
 }
 
 /// What one frame cost and produced.
@@ -226,6 +226,8 @@ pub struct FramePipeline {
     /// restart) and the last denoised image.
     guide: Option<Guide>,
     denoised: Option<Vec<Vec3>>,
+    /// Why the still-view filter failed, once said.
+    denoise_error: Option<String>,
     /// The frame-by-frame denoiser and its history (kept across camera moves: it follows
     /// the surfaces).
     temporal: Temporal,
@@ -274,6 +276,7 @@ impl FramePipeline {
             film,
             guide: None,
             denoised: None,
+            denoise_error: None,
             temporal: Temporal::default(),
             samples: 0,
             frame: 0,
@@ -386,7 +389,7 @@ impl FramePipeline {
             self.lights = Some(LightSet::new(&self.geometry, &self.scene.materials, &self.scene.background));
         }
         // This frame's samples go through the temporal filter, guided by their own first hits.
-        let temporal = self.settings.denoise
+        let temporal = self.settings.denoise.is_some()
             && self.settings.mode == ViewMode::Colour
             && self.samples + 1 < ACCUMULATED_DENOISE_FROM;
         let render_start = Instant::now();
@@ -395,13 +398,13 @@ impl FramePipeline {
         self.film.add_frame(&pixels);
         self.samples += 1;
         let s = self.samples;
-        if self.settings.denoise && self.settings.mode == ViewMode::Colour {
+        if let (Some(filter), ViewMode::Colour) = (self.settings.denoise, self.settings.mode) {
             let denoise_start = Instant::now();
             if let Some(first_hits) = first_hits {
                 self.denoise_frame(&pixels, &first_hits);
                 report.denoise_ms = ms_since(denoise_start);
             } else if s.is_power_of_two() || s.is_multiple_of(64) {
-                self.denoise();
+                self.denoise(filter);
                 report.denoise_ms = ms_since(denoise_start);
             }
         }
@@ -652,20 +655,30 @@ impl FramePipeline {
         self.denoised = Some(self.temporal.denoise(pixels, &guide, &camera));
     }
 
-    /// Denoises the film as it is now, tracing the guide first if the film restarted.
-    fn denoise(&mut self) {
+    /// Denoises the film as it is now with `filter`, tracing the guide first if the film
+    /// restarted. A filter that fails (OIDN without its library) leaves the raw mean, and
+    /// says why once.
+    fn denoise(&mut self, filter: Filter) {
         if self.guide.is_none() {
             self.guide = Some(self.trace_guide(VIEWER_GUIDE_SAMPLES));
         }
         let guide = self.guide.as_ref().expect("traced above");
-        self.denoised = Some(Atrous::default().denoise(&self.film.mean(), &self.film.variance_of_mean(), guide));
+        self.denoised = match filter.apply(&self.film, guide) {
+            Ok(image) => Some(image),
+            Err(why) => {
+                if self.denoise_error.replace(why.clone()).is_none() {
+                    eprintln!("warning: not denoised: {why}");
+                }
+                None
+            }
+        };
     }
 
     /// The accumulated image (linear radiance, row-major from the top left): the last
     /// denoised one when denoising is on and there is one since the film restarted.
     pub fn image(&self) -> Vec<Vec3> {
         match &self.denoised {
-            Some(image) if self.settings.denoise => image.clone(),
+            Some(image) if self.settings.denoise.is_some() => image.clone(),
             _ => self.film.mean(),
         }
     }

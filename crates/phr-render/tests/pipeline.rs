@@ -59,7 +59,7 @@ fn pipeline_of(kind: PipelineKind, builder: Builder, explicit_lights: bool) -> F
         max_depth: 4,
         mode: ViewMode::Colour,
         explicit_lights,
-        denoise: false,
+        denoise: None,
     };
     FramePipeline::new(scene, settings, camera)
 }
@@ -199,7 +199,7 @@ fn denoising_shows_a_smoother_image_from_the_first_frame_on() {
     plain.playing = false;
     denoised.playing = false;
     let mut settings = denoised.settings().clone();
-    settings.denoise = true;
+    settings.denoise = Some(phr_render::denoise::Filter::Atrous);
     denoised.set_settings(settings);
     let roughness = |image: &[Vec3]| image.windows(2).map(|p| (p[0] - p[1]).abs().element_sum()).sum::<f32>();
     let mut camera = denoised.camera().clone();
@@ -244,7 +244,7 @@ fn a_moving_view_is_denoised_towards_the_reference() {
         max_depth: scene.settings.max_depth,
         mode: ViewMode::Colour,
         explicit_lights: true,
-        denoise: true,
+        denoise: Some(phr_render::denoise::Filter::Atrous),
     };
     // The same last frame with no history: the spatial filter alone.
     let mut fresh = FramePipeline::new(scene.clone(), settings.clone(), target.clone());

@@ -59,7 +59,7 @@ fn pipeline_of(scene: phr_render::Scene, kind: PipelineKind) -> FramePipeline {
         max_depth: 3,
         mode: ViewMode::Colour,
         explicit_lights: true,
-        denoise: false,
+        denoise: None,
     };
     FramePipeline::new(scene, settings, camera)
 }

@@ -84,7 +84,7 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
         max_depth: scene.settings.max_depth.min(8),
         mode: ViewMode::Colour,
         explicit_lights: false,
-        denoise: false,
+        denoise: None,
     };
     let mut pipeline = FramePipeline::new(scene, settings, view);
     let progress = ProgressBar::new(args.frames as u64);

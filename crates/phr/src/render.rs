@@ -6,7 +6,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::builder::BuildReport;
 use phr_bvh::{sah_cost, Builder, SahConstants};
-use phr_render::denoise::{Atrous, Guide, GUIDE_SAMPLES};
+use phr_render::denoise::{oidn, Atrous, Filter, Guide, GUIDE_SAMPLES};
 use phr_render::film::Film;
 use phr_render::geometry::Geometry;
 use phr_render::lights::LightSet;
@@ -72,6 +72,8 @@ pub struct RenderArgs {
     pub integrator: Integrator,
     /// `atrous`: the edge-avoiding à-trous filter guided by the first hits' albedo, normals
     /// and positions, and by the film's variance (`crates/phr-render/src/denoise/atrous.rs`).
+    /// `oidn`: Intel Open Image Denoise, guided by the albedo and normals (builds with the
+    /// cargo feature `oidn`, see `tools/setup-oidn.sh`).
     #[arg(long, value_enum, default_value = "atrous")]
     pub denoiser: Denoiser,
 }
@@ -80,7 +82,18 @@ pub struct RenderArgs {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Denoiser {
     Atrous,
+    Oidn,
     None,
+}
+
+impl Denoiser {
+    pub fn filter(self) -> Option<Filter> {
+        match self {
+            Denoiser::Atrous => Some(Filter::Atrous),
+            Denoiser::Oidn => Some(Filter::Oidn),
+            Denoiser::None => None,
+        }
+    }
 }
 
 /// The estimators of `phr render --integrator`.
@@ -135,6 +148,9 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     if let Some(p) = &args.heatmap {
         check_output(p, &["png"])?;
     }
+    if args.denoiser == Denoiser::Oidn && !oidn::AVAILABLE {
+        bail!("--denoiser oidn: {}", oidn::MISSING);
+    }
     let scene = open_scene(&args.scene)?;
     let view = scene.view(args.view.as_deref()).with_context(|| {
         format!(
@@ -185,14 +201,12 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let mean = film.mean();
     let guide = (args.denoiser != Denoiser::None || args.albedo.is_some())
         .then(|| Guide::render(&renderer, spp.min(GUIDE_SAMPLES)));
-    let denoised = match (&guide, args.denoiser) {
-        (Some(guide), Denoiser::Atrous) => {
-            let start = Instant::now();
-            let image = Atrous::default().denoise(&mean, &film.variance_of_mean(), guide);
-            Some((image, start.elapsed().as_secs_f64() * 1e3))
-        }
+    let start = Instant::now();
+    let denoised = match (&guide, args.denoiser.filter()) {
+        (Some(guide), Some(filter)) => Some(filter.apply(&film, guide).map_err(anyhow::Error::msg)?),
         _ => None,
-    };
+    }
+    .map(|image| (image, start.elapsed().as_secs_f64() * 1e3));
     let image = denoised.as_ref().map_or(&mean, |(image, _)| image);
     write_image(&args.out, width, height, image).with_context(|| format!("writing {}", args.out.display()))?;
     if let (Some(p), Some(guide)) = (&args.albedo, &guide) {
@@ -225,7 +239,10 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         sah
     );
     if let Some((_, ms)) = denoised {
-        println!("denoised (à-trous, {} passes) in {ms:.0} ms", Atrous::default().passes);
+        match args.denoiser {
+            Denoiser::Oidn => println!("denoised (Open Image Denoise) in {ms:.0} ms"),
+            _ => println!("denoised (à-trous, {} passes) in {ms:.0} ms", Atrous::default().passes),
+        }
     }
     println!("wrote {}", args.out.display());
     Ok(())

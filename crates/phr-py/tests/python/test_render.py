@@ -75,6 +75,9 @@ def test_bad_scenes_and_settings_raise_with_the_message(tmp_path):
     with pytest.raises(ValueError, match="spp"):
         scene.render(width=8, height=8, spp=0)
     with pytest.raises(ValueError, match="denoiser"):
+        scene.render(width=8, height=8, spp=1, denoiser="bm3d")
+    # The module is built without Open Image Denoise: the error says how to get it.
+    with pytest.raises(ValueError, match="setup-oidn.sh"):
         scene.render(width=8, height=8, spp=1, denoiser="oidn")
     with pytest.raises(ValueError, match="integrator"):
         scene.render(width=8, height=8, spp=1, integrator="bdpt")

@@ -7,15 +7,18 @@
 //! - [`Atrous`]: the spatial filter, for an accumulated image whose variance is known (a
 //!   finished render, a still view);
 //! - [`Temporal`]: SVGF's temporal accumulation in front of it, for one sample per pixel per
-//!   frame while the view moves.
+//!   frame while the view moves;
+//! - [`oidn`]: Intel Open Image Denoise, behind the cargo feature `oidn`.
 
 mod atrous;
+pub mod oidn;
 mod temporal;
 
 pub use atrous::Atrous;
 pub use temporal::Temporal;
 
 use crate::camera::Camera;
+use crate::film::Film;
 use crate::integrator::FirstHit;
 use crate::render::Renderer;
 use crate::sampler::Pcg32;
@@ -25,6 +28,31 @@ use rayon::prelude::*;
 /// Jittered first hits per pixel for the guide of a finished render (`phr render`, Python),
 /// or its spp if lower: enough to anti-alias the albedo as the colour is.
 pub const GUIDE_SAMPLES: u32 = 16;
+
+/// The filters of an accumulated image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Filter {
+    Atrous,
+    /// Intel Open Image Denoise ([`oidn`]; an error in builds without the feature).
+    Oidn,
+}
+
+impl Filter {
+    /// `film`'s mean, filtered with the guide of its view.
+    pub fn apply(self, film: &Film, guide: &Guide) -> Result<Vec<Vec3>, String> {
+        match self {
+            Filter::Atrous => Ok(Atrous::default().denoise(&film.mean(), &film.variance_of_mean(), guide)),
+            Filter::Oidn => oidn::denoise(&film.mean(), guide),
+        }
+    }
+
+    /// A finished render of `spp` samples from `renderer`, filtered: the guide is traced with
+    /// [`GUIDE_SAMPLES`] rays per pixel (or `spp`, if fewer) and returned with the image.
+    pub fn finish(self, renderer: &Renderer, film: &Film, spp: u32) -> Result<(Vec<Vec3>, Guide), String> {
+        let guide = Guide::render(renderer, spp.min(GUIDE_SAMPLES));
+        Ok((self.apply(film, &guide)?, guide))
+    }
+}
 
 /// The first surface each pixel sees: what the filter is guided by.
 #[derive(Clone, Debug)]

@@ -73,7 +73,8 @@ pub struct ViewArgs {
     /// `atrous`: every frame is shown denoised: while the view or the scene moves (and for
     /// the first 15 still frames) each frame's samples through SVGF's temporal filter, whose
     /// history follows the surfaces; from 16 samples on, the accumulated image at each power
-    /// of two (then every 64); `none`: the raw mean.
+    /// of two (then every 64); `oidn`: the same, with Intel Open Image Denoise on the
+    /// accumulated image (builds with the cargo feature `oidn`); `none`: the raw mean.
     #[arg(long, value_enum, default_value = "atrous")]
     denoiser: Denoiser,
 }
@@ -150,6 +151,9 @@ pub fn run(args: &ViewArgs) -> Result<()> {
 
 /// Loads the scene and sets the pipeline up as the arguments say.
 fn open(args: &ViewArgs) -> Result<FramePipeline> {
+    if args.denoiser == Denoiser::Oidn && !phr_render::denoise::oidn::AVAILABLE {
+        anyhow::bail!("--denoiser oidn: {}", phr_render::denoise::oidn::MISSING);
+    }
     let scene = open_scene(&args.scene)?;
     let camera = scene
         .view(args.view.as_deref())
@@ -166,7 +170,7 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
         max_depth,
         mode: args.mode.into(),
         explicit_lights: args.light_sampling == LightSampling::Explicit,
-        denoise: args.denoiser == Denoiser::Atrous,
+        denoise: args.denoiser.filter(),
     };
     let mut pipeline = FramePipeline::new(scene, settings, camera);
     pipeline.playing = !args.paused;

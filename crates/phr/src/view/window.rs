@@ -19,6 +19,7 @@ use glam::Vec3;
 use phr_bvh::phr::PhrOptions;
 use phr_bvh::Builder;
 use phr_render::camera::CameraDesc;
+use phr_render::denoise::{oidn, Filter};
 use phr_render::output::write_image;
 use phr_render::pipeline::{FramePipeline, FrameReport, PipelineKind, PipelineSettings, ViewMode};
 use std::collections::VecDeque;
@@ -481,7 +482,15 @@ impl ViewerApp {
         ui.add(egui::Slider::new(&mut self.scale, 0.25..=2.0).text("resolution scale"));
         ui.add(egui::Slider::new(&mut self.controls.settings.max_depth, 1..=16).text("max depth"));
         ui.checkbox(&mut self.controls.settings.explicit_lights, "light sampling (MIS)");
-        ui.checkbox(&mut self.controls.settings.denoise, "denoise (à-trous)");
+        ui.horizontal_wrapped(|ui| {
+            ui.label("denoise");
+            let denoise = &mut self.controls.settings.denoise;
+            ui.radio_value(denoise, None, "off");
+            ui.radio_value(denoise, Some(Filter::Atrous), "à-trous");
+            if oidn::AVAILABLE {
+                ui.radio_value(denoise, Some(Filter::Oidn), "OIDN (still view)");
+            }
+        });
         ui.horizontal_wrapped(|ui| {
             for mode in ViewMode::ALL {
                 ui.radio_value(&mut self.controls.settings.mode, mode, mode.name());
