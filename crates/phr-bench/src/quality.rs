@@ -10,7 +10,7 @@
 
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
-use phr_render::denoise::{oidn, Filter, Guide, GUIDE_SAMPLES};
+use phr_render::denoise::{oidn, unfiltered_to_refine, Filter, Guide, GUIDE_SAMPLES};
 use phr_render::film::Film;
 use phr_render::render::Renderer;
 use std::path::Path;
@@ -79,21 +79,26 @@ pub struct Rendered {
     pub image: Vec<Vec3>,
 }
 
-/// What a denoised output adds after the last frame: the guide's camera rays (up to
-/// [`GUIDE_SAMPLES`] per pixel, as many as there are frames) and the filter. Measured on
-/// `renderer` once, as the faster of two runs (the first is cold); what [`render_within`]
-/// reserves.
+/// What a denoised output adds after the last frame ([`Filter::finish`]): the guide's
+/// camera rays (up to [`GUIDE_SAMPLES`] per pixel, as many as there are frames), the extra
+/// samples of the pixels the filter leaves noisy (a share of each frame's work), and the
+/// filter. Measured on `renderer` once (times as the faster of two runs: the first is cold);
+/// what [`render_within`] reserves.
 #[derive(Clone, Copy, Debug)]
 pub struct DenoiseCost {
     pub filter: Filter,
     pub filter_ms: f64,
     pub guide_ms_per_sample: f64,
+    /// Extra samples per film sample, over the whole image (measured on a 4-frame film).
+    pub extra_share: f64,
 }
 
 impl DenoiseCost {
     pub fn measure(renderer: &Renderer, filter: Filter) -> Result<Self, String> {
         let mut film = Film::new(renderer.width, renderer.height);
-        film.add_frame(&renderer.render_frame(0).0);
+        for frame in 0..4 {
+            film.add_frame(&renderer.render_frame(frame).0);
+        }
         let time = |f: &dyn Fn() -> Result<(), String>| -> Result<f64, String> {
             let run = || {
                 let start = Instant::now();
@@ -101,18 +106,21 @@ impl DenoiseCost {
             };
             Ok(run()?.min(run()?))
         };
-        let guide = Guide::render(renderer, 1);
+        let guide = Guide::render(renderer, 4);
         let filter_ms = time(&|| filter.apply(&film, &guide).map(drop))?;
         let guide_ms = time(&|| {
             let _ = Guide::render(renderer, GUIDE_SAMPLES);
             Ok(())
         })?;
-        Ok(Self { filter, filter_ms, guide_ms_per_sample: guide_ms / f64::from(GUIDE_SAMPLES) })
+        let (pixels, extra) = unfiltered_to_refine(&film, &film.mean(), &guide);
+        let extra_share = (pixels.len() as f64 * f64::from(extra)) / (guide.albedo.len() as f64 * 4.0);
+        Ok(Self { filter, filter_ms, guide_ms_per_sample: guide_ms / f64::from(GUIDE_SAMPLES), extra_share })
     }
 
-    /// After `spp` frames.
-    pub fn ms(&self, spp: u32) -> f64 {
-        self.filter_ms + self.guide_ms_per_sample * f64::from(spp.clamp(1, GUIDE_SAMPLES))
+    /// After `spp` frames of `frame_ms` each.
+    pub fn ms(&self, spp: u32, frame_ms: f64) -> f64 {
+        let extra_ms = self.extra_share * f64::from(spp) * frame_ms;
+        self.filter_ms + self.guide_ms_per_sample * f64::from(spp.clamp(1, GUIDE_SAMPLES)) + extra_ms
     }
 }
 
@@ -121,7 +129,7 @@ impl DenoiseCost {
 /// last frame is part of the total, and its filter then runs.
 pub fn render_within(renderer: &Renderer, budget: Duration, denoise: Option<&DenoiseCost>) -> Result<Rendered, String> {
     let budget_ms = budget.as_secs_f64() * 1e3;
-    let reserve = |spp: u32| denoise.map_or(0.0, |d| d.ms(spp));
+    let reserve = |spp: u32, frame_ms: f64| denoise.map_or(0.0, |d| d.ms(spp, frame_ms));
     let mut film = Film::new(renderer.width, renderer.height);
     let start = Instant::now();
     let mut spp = 0u32;
@@ -131,14 +139,15 @@ pub fn render_within(renderer: &Renderer, budget: Duration, denoise: Option<&Den
         let elapsed = start.elapsed().as_secs_f64() * 1e3;
         // Totals if we stop now, and after one more frame (of the mean length so far): go on
         // while the second lands closer to the budget.
-        let now = elapsed + reserve(spp);
-        let next = elapsed + elapsed / f64::from(spp) + reserve(spp + 1);
+        let frame_ms = elapsed / f64::from(spp);
+        let now = elapsed + reserve(spp, frame_ms);
+        let next = elapsed + frame_ms + reserve(spp + 1, frame_ms);
         if 0.5 * (now + next) >= budget_ms {
             break;
         }
     }
     let image = match denoise {
-        Some(d) => d.filter.finish(renderer, &film, spp)?.0,
+        Some(d) => d.filter.finish(renderer, &film)?.0,
         None => film.mean(),
     };
     Ok(Rendered { spp, ms: start.elapsed().as_secs_f64() * 1e3, image })

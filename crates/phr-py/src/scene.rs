@@ -180,7 +180,7 @@ impl Scene {
                         film.add_frame(&renderer.render_frame(frame).0);
                     }
                     let image = match filter {
-                        Some(filter) => filter.finish(&renderer, &film, settings.spp)?.0,
+                        Some(filter) => filter.finish(&renderer, &film)?.0,
                         None => film.mean(),
                     };
                     Ok::<_, String>(image.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>())

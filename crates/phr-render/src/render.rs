@@ -111,11 +111,7 @@ impl Renderer<'_> {
                 let mut rays = 0u64;
                 for y in y0..(y0 + TILE).min(self.height) {
                     for x in x0..(x0 + TILE).min(self.width) {
-                        let pixel = y * self.width + x;
-                        let mut rng = Pcg32::for_pixel(self.seed, frame, pixel);
-                        let (jx, jy) = Pcg32::pixel_jitter(self.seed, frame, pixel);
-                        let ray = self.camera.ray(x as f32 + jx, y as f32 + jy);
-                        let (colour, traced) = shade(ray, &mut rng);
+                        let (colour, traced) = self.pixel_sample(frame, y * self.width + x, &shade);
                         out.push(colour);
                         rays += traced as u64;
                     }
@@ -134,6 +130,37 @@ impl Renderer<'_> {
             stats.rays += rays;
         }
         (image, stats)
+    }
+
+    /// Sample `frame` of `pixel` (row-major index) through `shade`: its random numbers and
+    /// its position in the pixel depend on (seed, frame, pixel) alone.
+    #[inline]
+    fn pixel_sample<T>(
+        &self,
+        frame: u32,
+        pixel: u32,
+        shade: impl Fn(phr_bvh::Ray, &mut Pcg32) -> (T, u32),
+    ) -> (T, u32) {
+        let (x, y) = (pixel % self.width, pixel / self.width);
+        let mut rng = Pcg32::for_pixel(self.seed, frame, pixel);
+        let (jx, jy) = Pcg32::pixel_jitter(self.seed, frame, pixel);
+        shade(self.camera.ray(x as f32 + jx, y as f32 + jy), &mut rng)
+    }
+
+    /// The sum of samples `frames` of each of `pixels` (row-major indices): the samples
+    /// [`Renderer::render_frame`] gives those pixels in those frames.
+    pub fn pixel_samples(&self, pixels: &[u32], frames: std::ops::Range<u32>) -> Vec<Vec3> {
+        pixels
+            .par_iter()
+            .map(|&pixel| {
+                frames
+                    .clone()
+                    .map(|frame| {
+                        self.pixel_sample(frame, pixel, |ray, rng| (self.tracer.trace(ray, rng).radiance, 0)).0
+                    })
+                    .sum()
+            })
+            .collect()
     }
 
     /// Traversal work of the camera ray through each pixel's centre (thesis Figure 5.3).

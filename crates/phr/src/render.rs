@@ -199,14 +199,14 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     progress.finish_and_clear();
 
     let mean = film.mean();
-    let guide = (args.denoiser != Denoiser::None || args.albedo.is_some())
-        .then(|| Guide::render(&renderer, spp.min(GUIDE_SAMPLES)));
     let start = Instant::now();
-    let denoised = match (&guide, args.denoiser.filter()) {
-        (Some(guide), Some(filter)) => Some(filter.apply(&film, guide).map_err(anyhow::Error::msg)?),
-        _ => None,
-    }
-    .map(|image| (image, start.elapsed().as_secs_f64() * 1e3));
+    let (denoised, guide) = match args.denoiser.filter() {
+        Some(filter) => {
+            let (image, guide) = filter.finish(&renderer, &film).map_err(anyhow::Error::msg)?;
+            (Some((image, start.elapsed().as_secs_f64() * 1e3)), Some(guide))
+        }
+        None => (None, args.albedo.is_some().then(|| Guide::render(&renderer, spp.min(GUIDE_SAMPLES)))),
+    };
     let image = denoised.as_ref().map_or(&mean, |(image, _)| image);
     write_image(&args.out, width, height, image).with_context(|| format!("writing {}", args.out.display()))?;
     if let (Some(p), Some(guide)) = (&args.albedo, &guide) {
