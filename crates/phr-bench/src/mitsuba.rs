@@ -111,7 +111,9 @@ impl MitsubaPeer {
         std::fs::create_dir_all(work)?;
         let prefix = work.join(format!("{}_path_{spp}spp", crate::suite::scene_name(scene_file)));
         let (spp_arg, passes_arg) = (spp.to_string(), passes.to_string());
-        let args = ["--integrator", "path", "--rr", "--spp", &spp_arg, "--passes", &passes_arg];
+        // Seeds from 10⁶: the references were rendered from seed 0 (and `shared/reference`
+        // keeps 10⁶ for its own second renders), so ours must not replay their samples.
+        let args = ["--integrator", "path", "--rr", "--spp", &spp_arg, "--passes", &passes_arg, "--seed", "1000000"];
         let meta = self.run_script(scene_file, &prefix, &args, threads)?;
         let variant = meta["variant"].as_str().unwrap_or("unknown");
         if variant != VARIANT {

@@ -2,15 +2,16 @@
 //! measured as the RMSE against a converged reference (`phr bench-quality`).
 //!
 //! Ours renders 1-spp frames into a film, as the viewer and `phr render` do, until the
-//! budget is spent; the denoised variant reserves the time of its guide and filter (measured
-//! once per scene) and counts it. Mitsuba 3's `path` integrator (light sampling with MIS and
-//! Russian roulette, `llvm_ad_rgb`) gets the number of samples its warm rate fits into the
-//! same budget ([`crate::mitsuba`]). Each image is scored by [`rmse`] over all pixels and
+//! budget is spent; the denoised outputs reserve the time of what follows the last frame
+//! (the guide, the extra samples of the unfiltered noisy pixels, the filter) and count it.
+//! Mitsuba 3's `path` integrator (light sampling with MIS and Russian roulette,
+//! `llvm_ad_rgb`) gets the number of samples its warm rate fits into the same budget
+//! ([`crate::quality_bench`], [`crate::mitsuba`]). Each image is scored by [`rmse`] over all pixels and
 //! channels, the RMSE of `compare_images.py`.
 
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
-use phr_render::denoise::{oidn, unfiltered_to_refine, Filter, Guide, GUIDE_SAMPLES};
+use phr_render::denoise::{oidn, refine_unfiltered, unfiltered_to_refine, Filter, Guide, GUIDE_SAMPLES};
 use phr_render::film::Film;
 use phr_render::render::Renderer;
 use std::path::Path;
@@ -74,23 +75,24 @@ impl Method {
 #[derive(Clone, Debug)]
 pub struct Rendered {
     pub spp: u32,
-    /// Wall-clock ms: the frames, plus the guide and the filter when denoised.
+    /// Wall-clock ms: the frames, plus [`Filter::finish`] when denoised.
     pub ms: f64,
     pub image: Vec<Vec3>,
 }
 
 /// What a denoised output adds after the last frame ([`Filter::finish`]): the guide's
 /// camera rays (up to [`GUIDE_SAMPLES`] per pixel, as many as there are frames), the extra
-/// samples of the pixels the filter leaves noisy (a share of each frame's work), and the
-/// filter. Measured on `renderer` once (times as the faster of two runs: the first is cold);
-/// what [`render_within`] reserves.
-#[derive(Clone, Copy, Debug)]
+/// samples of the pixels the filter leaves noisy, and the filter. Measured once on
+/// `renderer` (each time the faster of two runs: the first is cold); what [`render_within`]
+/// reserves.
 pub struct DenoiseCost {
     pub filter: Filter,
     pub filter_ms: f64,
     pub guide_ms_per_sample: f64,
-    /// Extra samples per film sample, over the whole image (measured on a 4-frame film).
-    pub extra_share: f64,
+    /// One extra sample of one refined pixel (they see lights or the sky: short paths).
+    pub ms_per_extra_sample: f64,
+    /// A 4-sample guide, which says which pixels the filter leaves alone.
+    guide: Guide,
 }
 
 impl DenoiseCost {
@@ -112,42 +114,52 @@ impl DenoiseCost {
             let _ = Guide::render(renderer, GUIDE_SAMPLES);
             Ok(())
         })?;
-        let (pixels, extra) = unfiltered_to_refine(&film, &film.mean(), &guide);
-        let extra_share = (pixels.len() as f64 * f64::from(extra)) / (guide.albedo.len() as f64 * 4.0);
-        Ok(Self { filter, filter_ms, guide_ms_per_sample: guide_ms / f64::from(GUIDE_SAMPLES), extra_share })
+        let (pixels, samples) = unfiltered_to_refine(&film, &film.mean(), &guide);
+        let extra = (pixels.len() as f64 * f64::from(samples)).max(1.0);
+        let refine_ms = time(&|| {
+            let _ = refine_unfiltered(renderer, &film, &guide);
+            Ok(())
+        })?;
+        let (guide_ms_per_sample, ms_per_extra_sample) = (guide_ms / f64::from(GUIDE_SAMPLES), refine_ms / extra);
+        Ok(Self { filter, filter_ms, guide_ms_per_sample, ms_per_extra_sample, guide })
     }
 
-    /// After `spp` frames of `frame_ms` each.
-    pub fn ms(&self, spp: u32, frame_ms: f64) -> f64 {
-        let extra_ms = self.extra_share * f64::from(spp) * frame_ms;
-        self.filter_ms + self.guide_ms_per_sample * f64::from(spp.clamp(1, GUIDE_SAMPLES)) + extra_ms
+    /// The ms after `film`'s last frame.
+    pub fn ms(&self, film: &Film) -> f64 {
+        let (pixels, samples) = unfiltered_to_refine(film, &film.mean(), &self.guide);
+        let extra_ms = pixels.len() as f64 * f64::from(samples) * self.ms_per_extra_sample;
+        self.filter_ms + self.guide_ms_per_sample * f64::from(film.samples.clamp(1, GUIDE_SAMPLES)) + extra_ms
     }
 }
 
 /// Renders 1-spp frames (frame `k` is sample `k`) until `budget` is spent, stopping where
-/// the total lands closest to it (at least one frame). With `denoise`, its time after the
-/// last frame is part of the total, and its filter then runs.
+/// the total lands closest to it (at least one frame). With `denoise`, the time its
+/// [`Filter::finish`] takes after the last frame is part of the total (its estimate is
+/// updated every 8 frames, as the pixels it samples again change with the film), and it
+/// then runs.
 pub fn render_within(renderer: &Renderer, budget: Duration, denoise: Option<&DenoiseCost>) -> Result<Rendered, String> {
     let budget_ms = budget.as_secs_f64() * 1e3;
-    let reserve = |spp: u32, frame_ms: f64| denoise.map_or(0.0, |d| d.ms(spp, frame_ms));
     let mut film = Film::new(renderer.width, renderer.height);
     let start = Instant::now();
-    let mut spp = 0u32;
+    let mut reserve_ms = 0.0;
     loop {
-        film.add_frame(&renderer.render_frame(spp).0);
-        spp += 1;
+        film.add_frame(&renderer.render_frame(film.samples).0);
+        if let Some(cost) = denoise.filter(|_| film.samples % 8 == 1) {
+            reserve_ms = cost.ms(&film);
+        }
         let elapsed = start.elapsed().as_secs_f64() * 1e3;
         // Totals if we stop now, and after one more frame (of the mean length so far): go on
-        // while the second lands closer to the budget.
-        let frame_ms = elapsed / f64::from(spp);
-        let now = elapsed + reserve(spp, frame_ms);
-        let next = elapsed + frame_ms + reserve(spp + 1, frame_ms);
+        // while the second lands closer to the budget. (The reserve grows with the frames;
+        // this frame's is close enough to the next one's.)
+        let now = elapsed + reserve_ms;
+        let next = now + elapsed / f64::from(film.samples);
         if 0.5 * (now + next) >= budget_ms {
             break;
         }
     }
+    let spp = film.samples;
     let image = match denoise {
-        Some(d) => d.filter.finish(renderer, &film)?.0,
+        Some(d) => d.filter.finish(renderer, &film)?.image,
         None => film.mean(),
     };
     Ok(Rendered { spp, ms: start.elapsed().as_secs_f64() * 1e3, image })

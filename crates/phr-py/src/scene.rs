@@ -112,7 +112,7 @@ impl Scene {
     /// seed 0, integrator `path`: light sampling with MIS; `implicit`: the thesis's). Returns
     /// linear radiance, float32 of shape (height, width, 3), top row first: the raw mean, as
     /// `phr render --linear` writes it, or with `denoiser="atrous"` what `phr render --out`
-    /// writes (`"oidn"`: Intel Open Image Denoise, in builds with the cargo feature `oidn`).
+    /// writes (`"oidn"`, Intel Open Image Denoise, is an error: this module is built without it).
     #[pyo3(signature = (width = None, height = None, spp = None, view = None, seed = 0, max_depth = None, builder = "sbvh", integrator = "path", denoiser = "none", threads = None))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
@@ -180,7 +180,7 @@ impl Scene {
                         film.add_frame(&renderer.render_frame(frame).0);
                     }
                     let image = match filter {
-                        Some(filter) => filter.finish(&renderer, &film)?.0,
+                        Some(filter) => filter.finish(&renderer, &film)?.image,
                         None => film.mean(),
                     };
                     Ok::<_, String>(image.iter().flat_map(|p| p.to_array()).collect::<Vec<f32>>())

@@ -147,18 +147,22 @@ impl Renderer<'_> {
         shade(self.camera.ray(x as f32 + jx, y as f32 + jy), &mut rng)
     }
 
-    /// The sum of samples `frames` of each of `pixels` (row-major indices): the samples
-    /// [`Renderer::render_frame`] gives those pixels in those frames.
-    pub fn pixel_samples(&self, pixels: &[u32], frames: std::ops::Range<u32>) -> Vec<Vec3> {
+    /// The mean of samples `frames` of each of `pixels` (row-major indices): of the samples
+    /// [`Renderer::render_frame`] gives those pixels in those frames (summed in f64, as the
+    /// film does).
+    pub fn pixel_means(&self, pixels: &[u32], frames: std::ops::Range<u32>) -> Vec<Vec3> {
+        let n = frames.len().max(1) as f64;
         pixels
             .par_iter()
             .map(|&pixel| {
-                frames
+                let sum: glam::DVec3 = frames
                     .clone()
                     .map(|frame| {
                         self.pixel_sample(frame, pixel, |ray, rng| (self.tracer.trace(ray, rng).radiance, 0)).0
                     })
-                    .sum()
+                    .map(|c| c.as_dvec3())
+                    .sum();
+                (sum / n).as_vec3()
             })
             .collect()
     }

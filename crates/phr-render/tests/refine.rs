@@ -1,7 +1,7 @@
 //! The extra samples of a finished render's unfiltered pixels (`denoise::refine_unfiltered`):
-//! a pixel's extra samples are the very samples the following frames would give it, only
-//! pixels the filters leave alone get them, the lamp's uniform inside gets none, its edge
-//! does, and the refined edge is closer to the converged reference.
+//! a refined pixel's value is the mean of the very samples the following frames would give
+//! it (not of the film's, which chose it), only pixels the filters leave alone get them, and
+//! the lamp's uniform inside gets none.
 
 use glam::Vec3;
 use phr_render::denoise::{refine_unfiltered, unfiltered_to_refine, Guide, UNFILTERED_EXTRA};
@@ -45,11 +45,11 @@ fn unfiltered_noisy_pixels_get_the_samples_of_the_next_frames() {
     let inside: Vec<usize> =
         lamp.iter().copied().filter(|&i| [i - 1, i + 1, i - 128, i + 128].iter().all(|j| lamp.contains(j))).collect();
     assert!(!inside.is_empty() && inside.iter().all(|i| !pixels.contains(&(*i as u32))), "{inside:?}");
-    // Each refined pixel's value is the mean of its first spp + extra frames, to rounding.
+    // Each refined pixel's value is the mean of frames spp..spp + extra, to rounding.
     let refined = refine_unfiltered(&renderer, &film, &guide);
-    assert_eq!(refined.len(), pixels.len());
-    for (i, value) in refined {
-        let used = &frames[..(spp + extra) as usize];
+    assert_eq!((refined.pixels.len(), refined.samples), (pixels.len(), extra));
+    for (i, value) in refined.pixels {
+        let used = &frames[spp as usize..(spp + extra) as usize];
         let expected = used.iter().map(|f| f[i as usize]).sum::<Vec3>() / used.len() as f32;
         assert!(
             (value - expected).abs().max_element() <= 1e-4 * expected.max_element().max(1.0),

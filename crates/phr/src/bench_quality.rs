@@ -1,12 +1,12 @@
-//! `phr bench-quality`: image quality at equal time, ours (implicit, path, path + à-trous)
-//! against Mitsuba 3's path tracer, as RMSE against converged references. The measuring
+//! `phr bench-quality`: image quality at equal time, ours (implicit, path, path + à-trous,
+//! path + OIDN in builds with it) against Mitsuba 3's path tracer, as RMSE against converged references. The measuring
 //! lives in `phr_bench::quality_bench`; this parses arguments and prints.
 
 use crate::progress::Bar;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use phr_bench::mitsuba::MitsubaPeer;
-use phr_bench::quality_bench::{measure_scene, QualityOptions, REFERENCE_SCENES};
+use phr_bench::quality_bench::{measure_scene, open_scene_with_reference, QualityOptions, REFERENCE_SCENES};
 use phr_bench::quality_report::{markdown, write_quality_report, QualityRunInfo};
 use phr_bvh::Builder;
 use std::path::PathBuf;
@@ -25,7 +25,8 @@ pub struct BenchQualityArgs {
     /// Leave Mitsuba 3 out.
     #[arg(long)]
     pub no_mitsuba: bool,
-    /// Output folder (quality.csv, quality.json, quality.md, images/).
+    /// Output folder (quality.csv, quality.json, quality.md, images/, and mitsuba/: Mitsuba's
+    /// scene, images and timings).
     #[arg(long, default_value = "bench-quality")]
     pub out: PathBuf,
 }
@@ -34,13 +35,20 @@ pub fn run(args: &BenchQualityArgs) -> Result<()> {
     if args.seconds.is_empty() || args.seconds.iter().any(|s| !(s.is_finite() && *s > 0.0 && *s <= 3600.0)) {
         bail!("--seconds: budgets must lie in (0, 3600]");
     }
-    let files = match args.scenes.is_empty() {
+    let mut budgets = args.seconds.clone();
+    budgets.sort_by(f64::total_cmp);
+    budgets.dedup();
+    let files: Vec<PathBuf> = match args.scenes.is_empty() {
         false => args.scenes.clone(),
         true => {
             let dir = phr_bench::suite::shared_scenes_dir(None)?;
             REFERENCE_SCENES.iter().map(|s| dir.join("../reference/scenes").join(format!("{s}.json"))).collect()
         }
     };
+    // Every scene and its reference first: a bad one stops the run before anything is written.
+    for file in &files {
+        open_scene_with_reference(file).with_context(|| format!("{}", file.display()))?;
+    }
     let threads = rayon::current_num_threads();
     let mitsuba = match args.no_mitsuba {
         true => Err("--no-mitsuba".to_string()),
@@ -48,13 +56,7 @@ pub fn run(args: &BenchQualityArgs) -> Result<()> {
             .map(|dir| MitsubaPeer::next_to(&dir))
             .ok_or_else(|| "no shared scenes folder next to the scene files".to_string()),
     };
-    let options = QualityOptions {
-        budgets: args.seconds.clone(),
-        builder: args.builder,
-        mitsuba,
-        threads,
-        out: args.out.clone(),
-    };
+    let options = QualityOptions { budgets, builder: args.builder, mitsuba, threads, out: args.out.clone() };
     let progress = crate::progress::bar(files.len() as u64);
     let mut rows = Vec::new();
     for file in &files {

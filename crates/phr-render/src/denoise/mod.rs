@@ -48,68 +48,85 @@ impl Filter {
 
     /// A finished render from `renderer` (its film of `film.samples` frames), filtered: the
     /// guide is traced with [`GUIDE_SAMPLES`] rays per pixel (or the film's samples, if
-    /// fewer), the pixels it leaves noisy get more samples ([`refine_unfiltered`]), and the
-    /// image is returned with the guide.
-    pub fn finish(self, renderer: &Renderer, film: &Film) -> Result<(Vec<Vec3>, Guide), String> {
+    /// fewer), and the pixels it leaves alone that are still noisy are sampled again
+    /// ([`refine_unfiltered`]).
+    pub fn finish(self, renderer: &Renderer, film: &Film) -> Result<Finished, String> {
         let guide = Guide::render(renderer, film.samples.min(GUIDE_SAMPLES));
         let mut image = self.apply(film, &guide)?;
-        for (pixel, colour) in refine_unfiltered(renderer, film, &guide) {
+        let refined = refine_unfiltered(renderer, film, &guide);
+        for &(pixel, colour) in &refined.pixels {
             image[pixel as usize] = colour;
         }
-        Ok((image, guide))
+        Ok(Finished { image, guide, refined_pixels: refined.pixels.len(), extra_samples: refined.samples })
     }
+}
+
+/// What [`Filter::finish`] made.
+pub struct Finished {
+    pub image: Vec<Vec3>,
+    pub guide: Guide,
+    /// Pixels sampled again, and the samples each got.
+    pub refined_pixels: usize,
+    pub extra_samples: u32,
+}
+
+/// The pixels [`refine_unfiltered`] sampled again (row-major index, new value), and how many
+/// samples each got.
+pub struct Refined {
+    pub pixels: Vec<(u32, Vec3)>,
+    pub samples: u32,
 }
 
 /// A finished render's pixels that the filters leave alone (a light or the sky seen
 /// directly: [`Guide::footprint`] 0) are exact but for their coverage noise, which is large
 /// at a lamp's edge: on `cornell_obj` at 16 spp, 89 % of the denoised image's squared error
-/// lies within two pixels of the lamp. Those whose mean is still noisy (standard error above
-/// [`NOISY_UNFILTERED`] of their luminance), or differs by more than that from a neighbour's
-/// (an edge), get [`UNFILTERED_EXTRA`] times the film's samples
-/// more, within [`UNFILTERED_BUDGET`] of the film's work: the frames after the film's, so
-/// their positions in the pixel continue its stratified sequence. Returns each such pixel
-/// (row-major index) with its new mean.
-pub fn refine_unfiltered(renderer: &Renderer, film: &Film, guide: &Guide) -> Vec<(u32, Vec3)> {
-    let mean = film.mean();
-    let (pixels, extra) = unfiltered_to_refine(film, &mean, guide);
-    if pixels.is_empty() || extra == 0 {
-        return Vec::new();
+/// lay within two pixels of the lamp, and a border row whose 16 samples all fell on the lamp
+/// read 11.0 against a true 10.0, with zero variance. Those of them that are noisy (standard
+/// error above [`NOISY_UNFILTERED`] of their luminance) or at an edge (a neighbour twice as
+/// bright, or half) get [`UNFILTERED_EXTRA`] times the film's samples, within
+/// [`UNFILTERED_BUDGET`] of the film's work: the frames after the film's, so their positions
+/// in the pixel continue its stratified sequence. The new value is the mean of these new
+/// samples alone: they are independent of the film's samples that chose the pixel, so the
+/// choice biases nothing.
+pub fn refine_unfiltered(renderer: &Renderer, film: &Film, guide: &Guide) -> Refined {
+    let (pixels, samples) = unfiltered_to_refine(film, &film.mean(), guide);
+    if pixels.is_empty() || samples == 0 {
+        return Refined { pixels: Vec::new(), samples: 0 };
     }
     let spp = film.samples;
-    let sums = renderer.pixel_samples(&pixels, spp..spp + extra);
-    let total = (spp + extra) as f32;
-    pixels.iter().zip(sums).map(|(&i, sum)| (i, (mean[i as usize] * spp as f32 + sum) / total)).collect()
+    let means = renderer.pixel_means(&pixels, spp..spp.saturating_add(samples));
+    Refined { pixels: pixels.into_iter().zip(means).collect(), samples }
 }
 
-/// The pixels [`refine_unfiltered`] samples again (row-major indices), and how many more
-/// samples each gets.
+/// The pixels [`refine_unfiltered`] samples again (row-major indices), and how many samples
+/// each gets.
 pub fn unfiltered_to_refine(film: &Film, mean: &[Vec3], guide: &Guide) -> (Vec<u32>, u32) {
     let variance = film.variance_of_mean();
     let (w, h) = (guide.width as usize, guide.height as usize);
     let lum: Vec<f32> = mean.iter().map(|&c| luminance(c)).collect();
-    let differs = |i: usize, j: usize| (lum[i] - lum[j]).abs() > NOISY_UNFILTERED * lum[i].max(lum[j]).max(1e-3);
+    let edge_with = |i: usize, j: usize| (lum[i] - lum[j]).abs() > 0.5 * lum[i].max(lum[j]).max(1e-3);
     let pixels: Vec<u32> = (0..mean.len())
         .filter(|&i| {
             let (x, y) = (i % w, i / w);
-            // Noisy, or beside a pixel of another brightness: an edge whose few samples all
-            // fell on one side (a lamp's border row at 16 spp: 11.0 against a true 10.0).
             let noisy = luminance(variance[i]).sqrt() > NOISY_UNFILTERED * lum[i].max(1e-3);
-            let edge = (x > 0 && differs(i, i - 1))
-                || (x + 1 < w && differs(i, i + 1))
-                || (y > 0 && differs(i, i - w))
-                || (y + 1 < h && differs(i, i + w));
+            let edge = (x > 0 && edge_with(i, i - 1))
+                || (x + 1 < w && edge_with(i, i + 1))
+                || (y > 0 && edge_with(i, i - w))
+                || (y + 1 < h && edge_with(i, i + w));
             guide.footprint[i] == 0.0 && (noisy || edge)
         })
         .map(|i| i as u32)
         .collect();
     let affordable = UNFILTERED_BUDGET * mean.len() as f64 / pixels.len().max(1) as f64;
-    let extra = ((UNFILTERED_EXTRA as f64).min(affordable) * film.samples as f64) as u32;
-    (pixels, extra)
+    let samples = (f64::from(UNFILTERED_EXTRA).min(affordable) * f64::from(film.samples)).min(f64::from(u32::MAX / 2));
+    (pixels, samples as u32)
 }
 
-/// See [`refine_unfiltered`].
+/// How many times the film's samples a refined pixel gets ([`refine_unfiltered`]).
 pub const UNFILTERED_EXTRA: u32 = 15;
+/// The extra samples' cap, as a share of the film's samples over the whole image.
 pub const UNFILTERED_BUDGET: f64 = 0.25;
+/// A pixel is noisy when the standard error of its mean exceeds this share of its luminance.
 pub const NOISY_UNFILTERED: f32 = 0.01;
 
 /// The first surface each pixel sees: what the filter is guided by.
