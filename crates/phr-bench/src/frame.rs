@@ -5,7 +5,7 @@ use crate::stats::Stat;
 use phr_render::camera::CameraDesc;
 use phr_render::film::Film;
 use phr_render::geometry::Geometry;
-use phr_render::render::Renderer;
+use phr_render::render::{Renderer, Tracing};
 use phr_render::scene::RenderSettings;
 use phr_render::Scene;
 use std::time::Instant;
@@ -41,23 +41,25 @@ pub fn median_frame(
     geometry.set_bvh(bvh);
     // Meshes placed many times keep their own trees (built once, by the default builder).
     geometry.build_copies(&phr_bvh::Builder::default());
-    let timing = time_frames(scene, geometry, view, settings, 0, 3);
+    let timing = time_frames(scene, geometry, view, settings, Tracing::default(), 0, 3);
     (timing.ms.median, timing.rays)
 }
 
 /// Renders `warmup` untimed and then `frames` timed 1-spp frames of `scene` from `view` at
 /// the size and depth of `settings`, each added to a film (as the viewer does), on the tree
-/// already set in `geometry`. Frame `k` uses seed `k`, so each frame is a new sample.
+/// already set in `geometry`, its paths traced as `tracing` says. Frame `k` uses seed `k`, so
+/// each frame is a new sample.
 pub fn time_frames(
     scene: &Scene,
     geometry: &Geometry,
     view: &CameraDesc,
     settings: &RenderSettings,
+    tracing: Tracing,
     warmup: usize,
     frames: usize,
 ) -> FrameTiming {
     assert!(frames > 0, "time_frames needs at least one timed frame");
-    let renderer = Renderer::new(scene, geometry, view, settings, None);
+    let renderer = Renderer::new(scene, geometry, view, settings, None).with_tracing(tracing);
     let mut film = Film::new(settings.width, settings.height);
     let mut times = Vec::with_capacity(frames);
     let mut rays = 0u64;

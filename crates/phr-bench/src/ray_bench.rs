@@ -41,7 +41,9 @@ use std::time::Instant;
 pub const KINDS: [&str; 4] = ["primary", "incoherent", "diffuse", "shadow"];
 /// The kind traced as any-hit (occlusion) queries.
 pub const SHADOW: &str = "shadow";
-pub const VARIANTS: [&str; 3] = ["binary", "wide4", "wide8"];
+/// Our traversals: the binary reference, wide-4 and wide-8 one ray at a time, and wide-8 with
+/// 2 and 4 rays interleaved (closest hit only; chunks of 256 rays, as the renderer's tiles).
+pub const VARIANTS: [&str; 5] = ["binary", "wide4", "wide8", "wide8-x2", "wide8-x4"];
 
 /// What to measure.
 #[derive(Clone, Debug)]
@@ -220,9 +222,19 @@ fn check_hits(
     progress: &dyn Progress,
 ) -> Result<()> {
     let t = trees;
-    let variants: [(&str, Vec<Hit>); 2] = [
+    let interleaved = |m: usize| -> Vec<Hit> {
+        let mut hits = vec![None; rays.len()];
+        match m {
+            2 => t.wide8.closest_triangles_interleaved::<2>(&t.packed8, rays, &mut hits),
+            _ => t.wide8.closest_triangles_interleaved::<4>(&t.packed8, rays, &mut hits),
+        }
+        hits.into_iter().map(|h| h.map(|h| (h.prim, h.hit.t))).collect()
+    };
+    let variants: [(&str, Vec<Hit>); 4] = [
         ("wide4", rays.par_iter().map(|r| wide_hit(&t.wide4, &t.packed4, r)).collect()),
         ("wide8", rays.par_iter().map(|r| wide_hit(&t.wide8, &t.packed8, r)).collect()),
+        ("wide8-x2", interleaved(2)),
+        ("wide8-x4", interleaved(4)),
     ];
     for (variant, got) in variants {
         for i in (0..got.len()).filter(|&i| got[i] != reference[i]) {
@@ -280,8 +292,9 @@ fn measure_kind(
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
         progress.status(format!("{name}: {kind} rays, {threads} thread(s)"));
         for (i, v) in VARIANTS.iter().enumerate() {
-            let m = pool.install(|| variant_throughput(i, kind == SHADOW, rays, trees, options.repeats));
-            row.mrays.insert((v.to_string(), threads), m);
+            if let Some(m) = pool.install(|| variant_throughput(i, kind == SHADOW, rays, trees, options.repeats)) {
+                row.mrays.insert((v.to_string(), threads), m);
+            }
         }
     }
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
@@ -289,17 +302,29 @@ fn measure_kind(
     Ok(row)
 }
 
-/// Mrays/s of `VARIANTS[variant]` (binary, wide-4, wide-8), as any-hit queries for shadow
-/// rays.
-fn variant_throughput(variant: usize, any: bool, rays: &[Ray], t: &Trees, repeats: usize) -> f64 {
-    match (variant, any) {
+/// Mrays/s of `VARIANTS[variant]`, as any-hit queries for shadow rays (`None`: the variant
+/// has no any-hit query).
+fn variant_throughput(variant: usize, any: bool, rays: &[Ray], t: &Trees, repeats: usize) -> Option<f64> {
+    Some(match (variant, any) {
         (0, true) => throughput(rays, repeats, |ray| binary_occluded(&t.bvh, &t.tris, ray)),
         (1, true) => throughput(rays, repeats, |ray| t.wide4.any_triangle(&t.packed4, ray)),
-        (_, true) => throughput(rays, repeats, |ray| t.wide8.any_triangle(&t.packed8, ray)),
+        (2, true) => throughput(rays, repeats, |ray| t.wide8.any_triangle(&t.packed8, ray)),
+        (_, true) => return None,
         (0, false) => throughput(rays, repeats, |ray| binary_hit(&t.bvh, &t.tris, ray).is_some()),
         (1, false) => throughput(rays, repeats, |ray| wide_hit(&t.wide4, &t.packed4, ray).is_some()),
-        (_, false) => throughput(rays, repeats, |ray| wide_hit(&t.wide8, &t.packed8, ray).is_some()),
-    }
+        (2, false) => throughput(rays, repeats, |ray| wide_hit(&t.wide8, &t.packed8, ray).is_some()),
+        (3, false) => interleaved::<2>(rays, repeats, t),
+        _ => interleaved::<4>(rays, repeats, t),
+    })
+}
+
+/// Mrays/s of the wide-8 closest-hit traversal with `M` rays interleaved.
+fn interleaved<const M: usize>(rays: &[Ray], repeats: usize, t: &Trees) -> f64 {
+    crate::throughput::throughput_batched(rays, repeats, |chunk| {
+        let mut hits = vec![None; chunk.len()];
+        t.wide8.closest_triangles_interleaved::<M>(&t.packed8, chunk, &mut hits);
+        hits.iter().filter(|h| h.is_some()).count()
+    })
 }
 
 /// Where the time goes (on the current pool, one thread): nodes, leaves and triangles per
@@ -341,7 +366,7 @@ fn work_per_ray(row: &mut Row, rays: &[Ray], reference: &[Hit], t: &Trees, repea
     });
     let full = match row.get("wide8", 1) {
         Some(m) => m,
-        None => variant_throughput(2, row.kind == SHADOW, rays, t, repeats),
+        None => variant_throughput(2, row.kind == SHADOW, rays, t, repeats).expect("wide-8 answers both queries"),
     };
     row.traversal_share = full / traversal;
 }

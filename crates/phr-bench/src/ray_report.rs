@@ -50,24 +50,31 @@ pub fn markdown(infos: &[SceneInfo], rows: &[Row], options: &RayBenchOptions) ->
     }
     for &t in threads {
         s += &format!(
-            "\n## {t} thread(s)\n\n| scene | rays | binary | wide4 | wide8 | Embree | Embree robust | ours/Embree | ours/Embree robust | wide8/binary |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n"
+            "\n## {t} thread(s)\n\n| scene | rays | binary | wide4 | wide8 | wide8 ×2 | wide8 ×4 | Embree | Embree robust | ours/Embree | ours/Embree robust | ×2 or ×4/Embree robust | wide8/binary |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n"
         );
         for r in rows {
             let best = r.get("wide4", t).unwrap_or(0.0).max(r.get("wide8", t).unwrap_or(0.0));
             let ratio = r.get("embree", t).map(|e| best / e);
             let ratio_robust = r.get("embree-robust", t).map(|e| best / e);
+            let interleaved = r.get("wide8-x2", t).into_iter().chain(r.get("wide8-x4", t)).reduce(f64::max);
+            let interleaved_robust = interleaved.zip(r.get("embree-robust", t)).map(|(i, e)| i / e);
             let speedup = r.get("binary", t).map(|b| r.get("wide8", t).unwrap_or(0.0) / b);
-            let [b, w4, w8, e, er] = ["binary", "wide4", "wide8", "embree", "embree-robust"].map(|v| fmt(r.get(v, t)));
+            let [b, w4, w8, x2, x4, e, er] =
+                ["binary", "wide4", "wide8", "wide8-x2", "wide8-x4", "embree", "embree-robust"]
+                    .map(|v| fmt(r.get(v, t)));
             s += &table_row([
                 r.scene.clone(),
                 r.kind.clone(),
                 b,
                 w4,
                 w8,
+                x2,
+                x4,
                 e,
                 er,
                 fmt(ratio),
                 fmt(ratio_robust),
+                fmt(interleaved_robust),
                 fmt(speedup),
             ]);
         }

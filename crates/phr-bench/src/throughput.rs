@@ -17,6 +17,18 @@ pub fn throughput(rays: &[Ray], repeats: usize, trace: impl Fn(&Ray) -> bool + S
     rays.len() as f64 / best / 1e6
 }
 
+/// [`throughput`] of a tracer that takes a chunk of 256 rays at once and returns how many hit.
+pub fn throughput_batched(rays: &[Ray], repeats: usize, trace: impl Fn(&[Ray]) -> usize + Sync) -> f64 {
+    let mut best = f64::INFINITY;
+    for _ in 0..repeats.max(1) {
+        let start = Instant::now();
+        let hits: usize = rays.par_chunks(256).map(&trace).sum();
+        std::hint::black_box(hits);
+        best = best.min(start.elapsed().as_secs_f64());
+    }
+    rays.len() as f64 / best / 1e6
+}
+
 /// Mean per ray of the `K` counts `count` returns for each ray (nodes visited, leaves,
 /// primitives tested, ...).
 pub fn mean_counts<const K: usize>(rays: &[Ray], count: impl Fn(&Ray) -> [u64; K] + Sync) -> [f64; K] {

@@ -110,8 +110,41 @@ where
             assert_eq!(any, expected.is_some(), "{what}: any hit (closure), ray {i} {ray:?}");
             hits += expected.is_some() as usize;
         }
+        check_interleaved(&wide, &packed, tris, rays, &what);
     }
     hits
+}
+
+/// The interleaved traversal (1 to 4 rays at once) gives every ray the single-ray answer,
+/// slot and barycentrics included.
+fn check_interleaved<const N: usize>(
+    wide: &WideBvh<N>,
+    packed: &PackedTriangles,
+    tris: &[[Vec3; 3]],
+    rays: &[Ray],
+    what: &str,
+) where
+    Lanes<N>: Width<N>,
+{
+    let single: Vec<_> = rays.iter().map(|r| wide.closest_triangle_slot(packed, r)).collect();
+    for (ray, hit) in rays.iter().zip(&single) {
+        assert_eq!(hit.map(|h| (h.hit.t, h.prim)), brute_force(tris, ray), "{what}: slot query, ray {ray:?}");
+    }
+    let mut hits = vec![None; rays.len()];
+    wide.closest_triangles_interleaved::<1>(packed, rays, &mut hits);
+    assert_eq!(hits, single, "{what}: 1 ray at once");
+    wide.closest_triangles_interleaved::<2>(packed, rays, &mut hits);
+    assert_eq!(hits, single, "{what}: 2 rays at once");
+    wide.closest_triangles_interleaved::<3>(packed, rays, &mut hits);
+    assert_eq!(hits, single, "{what}: 3 rays at once");
+    wide.closest_triangles_interleaved::<4>(packed, rays, &mut hits);
+    assert_eq!(hits, single, "{what}: 4 rays at once");
+    // Fewer rays than slots, and none.
+    let few = &rays[..rays.len().min(3)];
+    let mut few_hits = vec![None; few.len()];
+    wide.closest_triangles_interleaved::<4>(packed, few, &mut few_hits);
+    assert_eq!(few_hits, single[..few.len()], "{what}: fewer rays than slots");
+    wide.closest_triangles_interleaved::<4>(packed, &[], &mut []);
 }
 
 #[test]
@@ -371,6 +404,22 @@ fn non_finite_rays_hit_nothing_and_stay_memory_safe() {
                 assert!(!wide.closest_hit(&mut ray.clone(), |_, _| true), "{what}");
                 assert!(!wide.any_hit(ray, |_, _| true), "{what}");
             }
+            // Among finite rays, in the interleaved traversal: the bad ones hit nothing, the
+            // others what they hit alone.
+            let finite = random_rays(bvh.root_bounds(), 40, &mut Rng::new(4));
+            let mixed: Vec<Ray> =
+                finite.iter().zip(rays.iter().cycle()).flat_map(|(a, b)| [*a, *b]).chain([*extra]).collect();
+            let mut hits = vec![None; mixed.len()];
+            wide.closest_triangles_interleaved::<3>(&packed, &mixed, &mut hits);
+            for (ray, hit) in mixed.iter().zip(&hits) {
+                assert_eq!(
+                    *hit,
+                    wide.closest_triangle_slot(&packed, ray),
+                    "wide-{N} {}, interleaved, ray {ray:?}",
+                    level.name()
+                );
+            }
+            assert!(hits.iter().step_by(2).any(Option::is_some), "some finite ray hits");
         }
     }
     run::<4>(&bvh, &tris, &rays, &finite_nan_interval);

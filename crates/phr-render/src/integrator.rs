@@ -81,26 +81,82 @@ struct LitVertex {
     pdf: f32,
 }
 
+/// A path being traced: the ray of its next segment and what it has gathered so far. The
+/// single-ray loop ([`PathTracer::trace`]) and the renderer's wavefront (which intersects the
+/// rays of many paths at once) both advance it one segment at a time through
+/// [`PathTracer::advance`], so they compute the same estimate from the same random numbers.
+#[derive(Clone, Copy)]
+pub struct Path {
+    /// The ray of the next segment (unit direction not required).
+    pub ray: Ray,
+    radiance: Vec3,
+    throughput: Vec3,
+    /// Segments traced so far.
+    segment: u32,
+    /// Rays traced so far (segments and shadow rays).
+    rays: u32,
+    /// The previous vertex, if it sampled the lights (`None`: the camera, or a mirror or
+    /// glass, whose direction no light sample could have taken).
+    lit: Option<LitVertex>,
+}
+
+impl Path {
+    /// A path whose first segment is `ray`.
+    pub fn new(ray: Ray) -> Self {
+        Self { ray, radiance: Vec3::ZERO, throughput: Vec3::ONE, segment: 0, rays: 0, lit: None }
+    }
+
+    /// What the path has gathered (its estimate once [`PathTracer::advance`] has said it
+    /// ended).
+    pub fn sample(&self) -> PathSample {
+        PathSample { radiance: self.radiance, rays: self.rays }
+    }
+}
+
 impl PathTracer<'_> {
     /// Traces one path starting with `ray` (unit direction not required).
     #[inline]
     pub fn trace(&self, ray: Ray, rng: &mut Pcg32) -> PathSample {
         let mut unused = FirstHit::SKY;
-        match self.lights {
-            Some(lights) => self.trace_with_lights::<false>(ray, lights, rng, &mut unused),
-            None => self.trace_implicit::<false>(ray, rng, &mut unused),
-        }
+        self.trace_path::<false>(ray, rng, &mut unused)
     }
 
     /// [`PathTracer::trace`], also returning what the path's first hit gives the denoiser's
     /// guide: the guide then follows the very rays the colour came from, at no extra ray.
     pub fn trace_guided(&self, ray: Ray, rng: &mut Pcg32) -> (PathSample, FirstHit) {
         let mut first = FirstHit::SKY;
-        let sample = match self.lights {
-            Some(lights) => self.trace_with_lights::<true>(ray, lights, rng, &mut first),
-            None => self.trace_implicit::<true>(ray, rng, &mut first),
-        };
+        let sample = self.trace_path::<true>(ray, rng, &mut first);
         (sample, first)
+    }
+
+    /// The single-ray loop: intersect, advance, until the path ends.
+    #[inline(always)]
+    fn trace_path<const GUIDE: bool>(&self, ray: Ray, rng: &mut Pcg32, first: &mut FirstHit) -> PathSample {
+        let mut path = Path::new(ray);
+        loop {
+            let hit = self.geometry.intersect(&path.ray);
+            if !self.advance::<GUIDE>(&mut path, hit, rng, first) {
+                break;
+            }
+        }
+        path.sample()
+    }
+
+    /// One segment of `path`: `hit` is the closest hit of `path.ray` (the caller traced it).
+    /// Gathers what the segment brings and, if the path goes on, sets `path.ray` to the next
+    /// segment's ray and returns true. `GUIDE`: record the first hit in `first`.
+    #[inline(always)]
+    pub fn advance<const GUIDE: bool>(
+        &self,
+        path: &mut Path,
+        hit: Option<Hit>,
+        rng: &mut Pcg32,
+        first: &mut FirstHit,
+    ) -> bool {
+        match self.lights {
+            Some(lights) => self.advance_with_lights::<GUIDE>(path, hit, lights, rng, first),
+            None => self.advance_implicit::<GUIDE>(path, hit, rng, first),
+        }
     }
 
     /// The guide's view of a camera ray's hit.
@@ -114,31 +170,35 @@ impl PathTracer<'_> {
     }
 
     /// The thesis's estimator: BSDF sampling alone. `GUIDE`: record the first hit.
-    fn trace_implicit<const GUIDE: bool>(&self, mut ray: Ray, rng: &mut Pcg32, first: &mut FirstHit) -> PathSample {
-        let mut radiance = Vec3::ZERO;
-        let mut throughput = Vec3::ONE;
-        let mut rays = 0;
-        for segment in 0..self.max_depth {
-            rays += 1;
-            let Some(hit) = self.geometry.intersect(&ray) else {
-                radiance += throughput * self.background.radiance(ray.dir.normalize());
-                break;
-            };
-            let surface = self.geometry.surface_point(&ray, &hit);
-            if GUIDE && segment == 0 {
-                *first = self.first_hit(&surface, &hit);
-            }
-            let material = &self.materials[surface.material as usize];
-            radiance += throughput * material.emitted(surface.front);
-            match material.scatter(ray.dir, surface.normal, surface.front, rng) {
-                Interaction::Absorb => break,
-                Interaction::Scatter { dir, weight } => {
-                    throughput *= self.textured(weight, &surface, &hit);
-                    ray = Ray::new(surface.spawn_origin(dir), dir);
-                }
+    #[inline(always)]
+    fn advance_implicit<const GUIDE: bool>(
+        &self,
+        path: &mut Path,
+        hit: Option<Hit>,
+        rng: &mut Pcg32,
+        first: &mut FirstHit,
+    ) -> bool {
+        path.rays += 1;
+        let Some(hit) = hit else {
+            path.radiance += path.throughput * self.background.radiance(path.ray.dir.normalize());
+            return false;
+        };
+        let ray = path.ray;
+        let surface = self.geometry.surface_point(&ray, &hit);
+        if GUIDE && path.segment == 0 {
+            *first = self.first_hit(&surface, &hit);
+        }
+        let material = &self.materials[surface.material as usize];
+        path.radiance += path.throughput * material.emitted(surface.front);
+        match material.scatter(ray.dir, surface.normal, surface.front, rng) {
+            Interaction::Absorb => false,
+            Interaction::Scatter { dir, weight } => {
+                path.throughput *= self.textured(weight, &surface, &hit);
+                path.ray = Ray::new(surface.spawn_origin(dir), dir);
+                path.segment += 1;
+                path.segment < self.max_depth
             }
         }
-        PathSample { radiance, rays }
     }
 
     /// A Lambertian hit's scattering weight (its albedo, `weight`) times its material's
@@ -161,92 +221,88 @@ impl PathTracer<'_> {
 
     /// Light sampling at diffuse and fuzzy-metal hits, MIS with BSDF sampling, Russian
     /// roulette.
-    fn trace_with_lights<const GUIDE: bool>(
+    #[inline(always)]
+    fn advance_with_lights<const GUIDE: bool>(
         &self,
-        mut ray: Ray,
+        path: &mut Path,
+        hit: Option<Hit>,
         lights: &LightSet,
         rng: &mut Pcg32,
         first: &mut FirstHit,
-    ) -> PathSample {
-        let mut radiance = Vec3::ZERO;
-        let mut throughput = Vec3::ONE;
-        let mut rays = 0;
-        // The previous vertex, if it sampled the lights (`None`: the camera, or a mirror or
-        // glass, whose direction no light sample could have taken).
-        let mut lit: Option<LitVertex> = None;
-        for segment in 0..self.max_depth {
-            rays += 1;
-            let Some(hit) = self.geometry.intersect(&ray) else {
-                let dir = ray.dir.normalize();
-                let weight = lit.map_or(1.0, |v| power_heuristic(v.pdf, lights.pdf_sky(v.facing, dir)));
-                radiance += throughput * self.background.radiance(dir) * weight;
-                break;
-            };
-            let surface = self.geometry.surface_point(&ray, &hit);
-            if GUIDE && segment == 0 {
-                *first = self.first_hit(&surface, &hit);
-            }
-            let material = &self.materials[surface.material as usize];
-            let emitted = material.emitted(surface.front);
-            if emitted != Vec3::ZERO {
-                let weight = lit.map_or(1.0, |v| {
-                    let light_pdf =
-                        lights.pdf_hit(self.geometry, hit.prim, v.position, surface.position, surface.normal);
-                    power_heuristic(v.pdf, light_pdf)
-                });
-                radiance += throughput * emitted * weight;
-            }
-            // Neither a light sample nor a bounce from here would arrive within max_depth.
-            if segment + 1 >= self.max_depth {
-                break;
-            }
-            let facing = if surface.front { surface.normal } else { -surface.normal };
-            // The scatter weight of a material with a lobe (diffuse, textured; fuzzy metal):
-            // light samples are weighed against it.
-            let lobe = match material {
-                Material::Lambertian { albedo } => Some(self.textured(*albedo, &surface, &hit)),
-                Material::Metal { albedo, .. } if material.has_lobe() => Some(*albedo),
-                _ => None,
-            };
-            if let Some(albedo) = lobe {
-                if let Some(light) = lights.sample(self.geometry, surface.position, facing, rng) {
-                    let lobe_pdf = material.lobe_pdf(ray.dir, surface.normal, surface.front, light.dir);
-                    if lobe_pdf > 0.0 && light.radiance != Vec3::ZERO {
-                        rays += 1;
-                        let origin = surface.spawn_origin(light.dir);
-                        // To the light's point, stopping short of it by a relative margin well
-                        // above float error; to the sky, without end.
-                        let shadow = match light.point {
-                            Some(p) => Ray::with_interval(origin, p - origin, 0.0, 1.0 - 1e-4),
-                            None => Ray::new(origin, light.dir),
-                        };
-                        if !self.geometry.occluded(&shadow) {
-                            let weight = power_heuristic(light.pdf, lobe_pdf);
-                            // BSDF × cosine = scatter weight × lobe density, over the light's.
-                            radiance += throughput * albedo * light.radiance * (lobe_pdf * weight / light.pdf);
-                        }
+    ) -> bool {
+        path.rays += 1;
+        let ray = path.ray;
+        let Some(hit) = hit else {
+            let dir = ray.dir.normalize();
+            let weight = path.lit.map_or(1.0, |v| power_heuristic(v.pdf, lights.pdf_sky(v.facing, dir)));
+            path.radiance += path.throughput * self.background.radiance(dir) * weight;
+            return false;
+        };
+        let surface = self.geometry.surface_point(&ray, &hit);
+        if GUIDE && path.segment == 0 {
+            *first = self.first_hit(&surface, &hit);
+        }
+        let material = &self.materials[surface.material as usize];
+        let emitted = material.emitted(surface.front);
+        if emitted != Vec3::ZERO {
+            let weight = path.lit.map_or(1.0, |v| {
+                let light_pdf = lights.pdf_hit(self.geometry, hit.prim, v.position, surface.position, surface.normal);
+                power_heuristic(v.pdf, light_pdf)
+            });
+            path.radiance += path.throughput * emitted * weight;
+        }
+        // Neither a light sample nor a bounce from here would arrive within max_depth.
+        if path.segment + 1 >= self.max_depth {
+            return false;
+        }
+        let facing = if surface.front { surface.normal } else { -surface.normal };
+        // The scatter weight of a material with a lobe (diffuse, textured; fuzzy metal):
+        // light samples are weighed against it.
+        let lobe = match material {
+            Material::Lambertian { albedo } => Some(self.textured(*albedo, &surface, &hit)),
+            Material::Metal { albedo, .. } if material.has_lobe() => Some(*albedo),
+            _ => None,
+        };
+        if let Some(albedo) = lobe {
+            if let Some(light) = lights.sample(self.geometry, surface.position, facing, rng) {
+                let lobe_pdf = material.lobe_pdf(ray.dir, surface.normal, surface.front, light.dir);
+                if lobe_pdf > 0.0 && light.radiance != Vec3::ZERO {
+                    path.rays += 1;
+                    let origin = surface.spawn_origin(light.dir);
+                    // To the light's point, stopping short of it by a relative margin well
+                    // above float error; to the sky, without end.
+                    let shadow = match light.point {
+                        Some(p) => Ray::with_interval(origin, p - origin, 0.0, 1.0 - 1e-4),
+                        None => Ray::new(origin, light.dir),
+                    };
+                    if !self.geometry.occluded(&shadow) {
+                        let weight = power_heuristic(light.pdf, lobe_pdf);
+                        // BSDF × cosine = scatter weight × lobe density, over the light's.
+                        path.radiance += path.throughput * albedo * light.radiance * (lobe_pdf * weight / light.pdf);
                     }
                 }
             }
-            match material.scatter(ray.dir, surface.normal, surface.front, rng) {
-                Interaction::Absorb => break,
-                Interaction::Scatter { dir, weight } => {
-                    throughput *= lobe.unwrap_or(weight);
-                    lit = lobe.map(|_| {
-                        let pdf = material.lobe_pdf(ray.dir, surface.normal, surface.front, dir.normalize());
-                        LitVertex { position: surface.position, facing, pdf }
-                    });
-                    ray = Ray::new(surface.spawn_origin(dir), dir);
-                }
-            }
-            if segment + 1 >= RR_START {
-                let survive = throughput.max_element().min(1.0);
-                if rng.next_f32() >= survive {
-                    break;
-                }
-                throughput /= survive;
+        }
+        match material.scatter(ray.dir, surface.normal, surface.front, rng) {
+            Interaction::Absorb => return false,
+            Interaction::Scatter { dir, weight } => {
+                path.throughput *= lobe.unwrap_or(weight);
+                path.lit = lobe.map(|_| {
+                    let pdf = material.lobe_pdf(ray.dir, surface.normal, surface.front, dir.normalize());
+                    LitVertex { position: surface.position, facing, pdf }
+                });
+                path.ray = Ray::new(surface.spawn_origin(dir), dir);
             }
         }
-        PathSample { radiance, rays }
+        path.segment += 1;
+        if path.segment >= RR_START {
+            let survive = path.throughput.max_element().min(1.0);
+            if rng.next_f32() >= survive {
+                return false;
+            }
+            path.throughput /= survive;
+        }
+        // The loop's own bound (the check above stops one segment earlier).
+        path.segment < self.max_depth
     }
 }

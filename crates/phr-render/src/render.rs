@@ -9,7 +9,7 @@
 
 use crate::camera::{Camera, CameraDesc};
 use crate::geometry::Geometry;
-use crate::integrator::{FirstHit, PathTracer};
+use crate::integrator::{FirstHit, Path, PathTracer};
 use crate::lights::LightSet;
 use crate::sampler::Pcg32;
 use crate::scene::{RenderSettings, Scene};
@@ -19,12 +19,49 @@ use rayon::prelude::*;
 
 const TILE: u32 = 16;
 
+/// How a frame's paths are traced. Both give the same image, bit for bit: each pixel's
+/// path consumes the same random numbers through [`PathTracer::advance`], and its rays get the
+/// same closest hits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Tracing {
+    /// A tile's paths advance together, one segment at a time: the rays of all live paths
+    /// are intersected as one batch ([`Geometry::intersect_batch`]: several rays traversed at
+    /// once, overlapping their memory waits), then each path is shaded.
+    #[default]
+    Wavefront,
+    /// Each pixel's path is traced to its end before the next starts (the thesis's loop; the
+    /// reference).
+    Single,
+}
+
+impl std::str::FromStr for Tracing {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "wavefront" => Ok(Tracing::Wavefront),
+            "single" => Ok(Tracing::Single),
+            _ => Err(format!("unknown tracing `{s}` (wavefront, single)")),
+        }
+    }
+}
+
+impl std::fmt::Display for Tracing {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Tracing::Wavefront => "wavefront",
+            Tracing::Single => "single",
+        })
+    }
+}
+
 pub struct Renderer<'a> {
     pub tracer: PathTracer<'a>,
     pub camera: Camera,
     pub width: u32,
     pub height: u32,
     pub seed: u64,
+    pub tracing: Tracing,
 }
 
 /// Work done in one frame.
@@ -61,12 +98,18 @@ impl<'a> Renderer<'a> {
             width,
             height,
             seed: 0,
+            tracing: Tracing::default(),
         }
     }
 
     /// The same renderer with another seed (images differ by seed, not by thread count).
     pub fn with_seed(self, seed: u64) -> Self {
         Self { seed, ..self }
+    }
+
+    /// The same renderer tracing its paths another way (the same image).
+    pub fn with_tracing(self, tracing: Tracing) -> Self {
+        Self { tracing, ..self }
     }
 }
 
@@ -78,6 +121,10 @@ impl Renderer<'_> {
 
     /// Renders frame number `frame` (1 sample per pixel); pixels row-major from the top left.
     pub fn render_frame(&self, frame: u32) -> (Vec<Vec3>, FrameStats) {
+        if self.tracing == Tracing::Wavefront {
+            let (pixels, stats) = self.render_tiles(|x0, y0| self.wavefront_tile::<false>(frame, x0, y0));
+            return (pixels.into_iter().map(|(colour, _)| colour).collect(), stats);
+        }
         self.render_frame_with(frame, |ray, rng| {
             let sample = self.tracer.trace(ray, rng);
             (sample.radiance, sample.rays)
@@ -87,12 +134,56 @@ impl Renderer<'_> {
     /// [`Renderer::render_frame`], also returning each pixel's first hit, from the ray its
     /// colour came from (what the denoiser's guide is made of, at no extra ray).
     pub fn render_frame_guided(&self, frame: u32) -> (Vec<Vec3>, Vec<FirstHit>, FrameStats) {
-        let (pixels, stats) = self.render_frame_with(frame, |ray, rng| {
-            let (sample, first) = self.tracer.trace_guided(ray, rng);
-            ((sample.radiance, first), sample.rays)
-        });
+        let (pixels, stats) = match self.tracing {
+            Tracing::Wavefront => self.render_tiles(|x0, y0| self.wavefront_tile::<true>(frame, x0, y0)),
+            Tracing::Single => self.render_frame_with(frame, |ray, rng| {
+                let (sample, first) = self.tracer.trace_guided(ray, rng);
+                ((sample.radiance, first), sample.rays)
+            }),
+        };
         let (colours, hits) = pixels.into_iter().unzip();
         (colours, hits, stats)
+    }
+
+    /// The paths of one tile (corner `x0, y0`) as a wavefront: every live path's next ray is
+    /// intersected in one batch, then each path advances one segment, until none is left.
+    /// Pixels in the tile's row-major order, with the rays traced. `GUIDE`: each pixel's first
+    /// hit too (else [`FirstHit::SKY`]).
+    fn wavefront_tile<const GUIDE: bool>(&self, frame: u32, x0: u32, y0: u32) -> (Vec<(Vec3, FirstHit)>, u64) {
+        let mut paths = Vec::with_capacity((TILE * TILE) as usize);
+        for y in y0..(y0 + TILE).min(self.height) {
+            for x in x0..(x0 + TILE).min(self.width) {
+                let (ray, rng) = self.camera_sample(frame, y * self.width + x);
+                paths.push((Path::new(ray), rng, FirstHit::SKY));
+            }
+        }
+        let mut live: Vec<usize> = (0..paths.len()).collect();
+        let mut rays = Vec::with_capacity(paths.len());
+        let mut hits = Vec::with_capacity(paths.len());
+        while !live.is_empty() {
+            rays.clear();
+            rays.extend(live.iter().map(|&i| paths[i].0.ray));
+            hits.clear();
+            hits.resize(rays.len(), None);
+            self.tracer.geometry.intersect_batch(&rays, &mut hits);
+            let mut k = 0;
+            live.retain(|&i| {
+                let (path, rng, first) = &mut paths[i];
+                let going = self.tracer.advance::<GUIDE>(path, hits[k], rng, first);
+                k += 1;
+                going
+            });
+        }
+        let mut traced = 0;
+        let pixels = paths
+            .into_iter()
+            .map(|(path, _, first)| {
+                let sample = path.sample();
+                traced += u64::from(sample.rays);
+                (sample.radiance, first)
+            })
+            .collect();
+        (pixels, traced)
     }
 
     /// The tile loop of [`Renderer::render_frame`] with another per-pixel estimator:
@@ -103,22 +194,27 @@ impl Renderer<'_> {
         frame: u32,
         shade: impl Fn(phr_bvh::Ray, &mut Pcg32) -> (T, u32) + Sync,
     ) -> (Vec<T>, FrameStats) {
-        let tiles: Vec<(Vec<T>, u64)> = self
-            .tiles()
-            .into_par_iter()
-            .map(|(x0, y0)| {
-                let mut out = Vec::with_capacity((TILE * TILE) as usize);
-                let mut rays = 0u64;
-                for y in y0..(y0 + TILE).min(self.height) {
-                    for x in x0..(x0 + TILE).min(self.width) {
-                        let (colour, traced) = self.pixel_sample(frame, y * self.width + x, &shade);
-                        out.push(colour);
-                        rays += traced as u64;
-                    }
+        self.render_tiles(|x0, y0| {
+            let mut out = Vec::with_capacity((TILE * TILE) as usize);
+            let mut rays = 0u64;
+            for y in y0..(y0 + TILE).min(self.height) {
+                for x in x0..(x0 + TILE).min(self.width) {
+                    let (colour, traced) = self.pixel_sample(frame, y * self.width + x, &shade);
+                    out.push(colour);
+                    rays += traced as u64;
                 }
-                (out, rays)
-            })
-            .collect();
+            }
+            (out, rays)
+        })
+    }
+
+    /// Renders the tiles as rayon tasks: `tile(x0, y0)` gives a tile's pixels in its
+    /// row-major order and the rays it traced; returns the image, row-major.
+    fn render_tiles<T: Copy + Default + Send>(
+        &self,
+        tile: impl Fn(u32, u32) -> (Vec<T>, u64) + Sync,
+    ) -> (Vec<T>, FrameStats) {
+        let tiles: Vec<(Vec<T>, u64)> = self.tiles().into_par_iter().map(|(x0, y0)| tile(x0, y0)).collect();
         let mut image = vec![T::default(); (self.width * self.height) as usize];
         let mut stats = FrameStats::default();
         for ((x0, y0), (pixels, rays)) in self.tiles().into_iter().zip(tiles) {
@@ -141,10 +237,18 @@ impl Renderer<'_> {
         pixel: u32,
         shade: impl Fn(phr_bvh::Ray, &mut Pcg32) -> (T, u32),
     ) -> (T, u32) {
+        let (ray, mut rng) = self.camera_sample(frame, pixel);
+        shade(ray, &mut rng)
+    }
+
+    /// The camera ray of sample `frame` of `pixel` (row-major index) and the random numbers
+    /// of its path: they depend on (seed, frame, pixel) alone.
+    #[inline]
+    fn camera_sample(&self, frame: u32, pixel: u32) -> (phr_bvh::Ray, Pcg32) {
         let (x, y) = (pixel % self.width, pixel / self.width);
-        let mut rng = Pcg32::for_pixel(self.seed, frame, pixel);
+        let rng = Pcg32::for_pixel(self.seed, frame, pixel);
         let (jx, jy) = Pcg32::pixel_jitter(self.seed, frame, pixel);
-        shade(self.camera.ray(x as f32 + jx, y as f32 + jy), &mut rng)
+        (self.camera.ray(x as f32 + jx, y as f32 + jy), rng)
     }
 
     /// The mean of samples `frames` of each of `pixels` (row-major indices): of the samples

@@ -10,6 +10,7 @@ use phr_bench::mitsuba::{MitsubaPeer, MitsubaRun};
 use phr_bench::suite::{load_thesis_scene, scene_name, suite_files, SUITE};
 use phr_bvh::Builder;
 use phr_render::geometry::Geometry;
+use phr_render::render::Tracing;
 use phr_render::scene::RenderSettings;
 use std::path::PathBuf;
 
@@ -29,6 +30,10 @@ pub struct BenchFrameArgs {
     /// build; the frames are of a still view, built once).
     #[arg(long, default_value = "sbvh")]
     pub builder: Builder,
+    /// How our renderer traces a frame's paths: `wavefront` (a tile's rays intersected as a
+    /// batch, several at once) or `single` (one path after the other; the same image).
+    #[arg(long, default_value = "wavefront")]
+    pub tracing: Tracing,
     /// Leave Mitsuba 3 out.
     #[arg(long)]
     pub no_mitsuba: bool,
@@ -62,7 +67,7 @@ pub fn run(args: &BenchFrameArgs) -> Result<()> {
             progress.set_message(format!("{name} {res}²: ours"));
             let settings = RenderSettings { width: res, height: res, spp: 1, max_depth: scene.settings.max_depth };
             settings.check().map_err(anyhow::Error::msg)?;
-            let ours = time_frames(&scene, &geometry, &view, &settings, args.warmup, args.frames);
+            let ours = time_frames(&scene, &geometry, &view, &settings, args.tracing, args.warmup, args.frames);
             progress.set_message(format!("{name} {res}²: Mitsuba 3"));
             let mitsuba = match &peer {
                 Ok(p) => p.thesis_frames(file, res, args.frames, threads, &args.out.join("mitsuba")),

@@ -11,7 +11,7 @@ use phr_render::film::Film;
 use phr_render::geometry::Geometry;
 use phr_render::lights::LightSet;
 use phr_render::output::{write_heatmap, write_image};
-use phr_render::render::Renderer;
+use phr_render::render::{Renderer, Tracing};
 use phr_render::scene::RenderSettings;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -78,6 +78,11 @@ pub struct RenderArgs {
     /// sampled again, 15 times the spp (at most a quarter of the render's samples).
     #[arg(long, value_enum, default_value = "atrous")]
     pub denoiser: Denoiser,
+    /// How a frame's paths are traced: `wavefront` (a tile's rays intersected as one batch,
+    /// several rays traversed at once) or `single` (each path to its end, one after the
+    /// other: the reference). The same image either way.
+    #[arg(long, default_value = "wavefront")]
+    pub tracing: Tracing,
 }
 
 /// The denoisers of `phr render --denoiser`.
@@ -124,6 +129,7 @@ impl Default for RenderArgs {
             quiet: false,
             integrator: Integrator::Path,
             denoiser: Denoiser::Atrous,
+            tracing: Tracing::default(),
             albedo: None,
         }
     }
@@ -180,7 +186,9 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let lights =
         (args.integrator == Integrator::Path).then(|| LightSet::new(&geometry, &scene.materials, &scene.background));
 
-    let renderer = Renderer::new(&scene, &geometry, &view, &settings, lights.as_ref()).with_seed(args.seed);
+    let renderer = Renderer::new(&scene, &geometry, &view, &settings, lights.as_ref())
+        .with_seed(args.seed)
+        .with_tracing(args.tracing);
     let progress = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(spp as u64) };
     progress.set_style(
         ProgressStyle::with_template("{spinner} rendering [{bar:30}] {pos}/{len} spp  {elapsed} (eta {eta})  {msg}")

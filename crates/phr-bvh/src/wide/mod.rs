@@ -39,7 +39,11 @@
 //!   hit children sorted by entry distance, nearest visited first, the others pushed with
 //!   their entry distance and skipped when popped if that distance exceeds the closest hit
 //!   (with the same `ROBUST_SLAB` slack as the binary traversal). Any-hit stops at the first
-//!   hit.
+//!   hit. [`WideBvh::closest_hit_interleaved`] walks several rays at once, one node or leaf
+//!   visit of each in turn (the same visit as the single-ray loop): a single ray waits for
+//!   each node before it knows the next, and interleaved rays fill that wait with each
+//!   other's work, which pays most where the tree does not fit the cache (the dragon's 65 MB:
+//!   1.7–1.8× the single ray's rate with 4 rays at once).
 //! - [`PackedTriangles`]: triangles in leaf order with `v0, e1 = v1 - v0, e2 = v2 - v0`
 //!   precomputed, structure-of-arrays in blocks of 4, tested 4 at a time by an SSE
 //!   Möller–Trumbore that performs [`crate::triangle::intersect_triangle`]'s operations in
@@ -366,6 +370,22 @@ where
     pub fn closest_hit_visit(&self, ray: &mut Ray, leaves: &mut impl LeafVisitor) -> bool {
         let mut stats = WideStats::default();
         <Lanes<N> as traverse::sealed::Sealed<N>>::run::<false, false, _>(self, ray, leaves, &mut stats)
+    }
+
+    /// Closest hits of `count` rays with `M` of them traversed at once, interleaved: each
+    /// round visits one node or leaf of every ray in flight, so that one ray's dependent node
+    /// loads overlap the others' work, and a finished ray's place goes to the next.
+    /// `start(i)` gives ray `i` and its leaf visitor; `finish(i, ray, visitor, hit)` returns
+    /// them when its traversal ends (`hit`: a visit reported a hit), in any order. Each ray
+    /// gets exactly what [`WideBvh::closest_hit_visit`] would give it.
+    #[inline]
+    pub fn closest_hit_interleaved<const M: usize, V: LeafVisitor>(
+        &self,
+        count: usize,
+        start: impl FnMut(usize) -> (Ray, V),
+        finish: impl FnMut(usize, Ray, V, bool),
+    ) {
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run_interleaved::<M, V>(self, count, start, finish)
     }
 
     /// Any hit with a [`LeafVisitor`]: stops at the first leaf whose visit returns true.

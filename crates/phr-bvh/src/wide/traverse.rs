@@ -222,8 +222,177 @@ impl Kernel<8> for Avx2Kernel {
     }
 }
 
-/// The traversal loop. `ANY`: stop at the first leaf that reports a hit. `COUNT`: fill
-/// `stats`.
+/// One ray's traversal in progress: its stack, its prepared ray, the entry it visits next
+/// and whether a leaf has reported a hit. The single-ray loop ([`run`]) steps one walk to its
+/// end; the interleaved loop ([`run_interleaved`]) steps several in turn.
+struct Walk<const N: usize> {
+    stack: Stack,
+    pre: RayPre,
+    cur: Entry,
+    hit: bool,
+}
+
+/// Per-ray stack memory: room for `stack_bound + N + 1` entries per array (see [`Stack`]) on
+/// the call stack when the tree's bound fits [`INLINE_STACK`] (nodes of up to 16 children),
+/// else on the heap.
+struct StackRoom {
+    child: [MaybeUninit<u32>; ROOM],
+    count: [MaybeUninit<u32>; ROOM],
+    t: [MaybeUninit<f32>; ROOM],
+    heap: (Vec<u32>, Vec<u32>, Vec<f32>),
+}
+
+/// Entries per array of an inline stack (array lengths cannot depend on `N`).
+const ROOM: usize = INLINE_STACK + 16 + 1;
+
+impl StackRoom {
+    #[inline(always)]
+    fn new() -> Self {
+        Self {
+            child: [MaybeUninit::uninit(); ROOM],
+            count: [MaybeUninit::uninit(); ROOM],
+            t: [MaybeUninit::uninit(); ROOM],
+            heap: (Vec::new(), Vec::new(), Vec::new()),
+        }
+    }
+
+    /// An empty stack in this room for traversing `bvh`.
+    #[inline(always)]
+    fn stack<const N: usize>(&mut self, bvh: &WideBvh<N>) -> Stack {
+        if bvh.stack_bound < INLINE_STACK && N <= 16 {
+            Stack {
+                child: self.child.as_mut_ptr().cast(),
+                count: self.count.as_mut_ptr().cast(),
+                t: self.t.as_mut_ptr().cast(),
+                sp: 0,
+            }
+        } else {
+            let room = bvh.stack_bound + N + 1;
+            let (child, count, t) = &mut self.heap;
+            child.reserve_exact(room);
+            count.reserve_exact(room);
+            t.reserve_exact(room);
+            Stack { child: child.as_mut_ptr(), count: count.as_mut_ptr(), t: t.as_mut_ptr(), sp: 0 }
+        }
+    }
+}
+
+/// Whether `ray` may be traversed. A ray with a non-finite origin or direction hits nothing,
+/// and must not be traversed: through `inf - inf` or `inf * 0` its slab distances turn NaN,
+/// which can make an empty slot (an inverted ±inf box whose child is 0) look hit, and the loop
+/// would push the root again and again, past the end of the stack. A finite ray never hits an
+/// empty slot, so every pushed entry is a real child and the stack bound holds. One test per
+/// ray.
+#[inline(always)]
+fn traversable(ray: &Ray) -> bool {
+    ray.origin.is_finite() && ray.dir.is_finite() && ray.inv_dir.is_finite()
+}
+
+impl<const N: usize> Walk<N> {
+    #[inline(always)]
+    fn start(ray: &Ray, stack: Stack) -> Self {
+        Self { stack, pre: RayPre::new(ray), cur: Entry { child: 0, count: 0, t: 0.0 }, hit: false }
+    }
+
+    /// Visits the current entry (one node's box test, or one leaf) and chooses the next.
+    /// Returns false when the walk has ended (stack empty, or an any-hit query found a hit);
+    /// `self.hit` then holds the answer. `ANY`: stop at the first leaf that reports a hit.
+    /// `COUNT`: fill `stats`.
+    ///
+    /// # Safety
+    /// The CPU must support `K`'s instructions; `nodes` must come from the collapse (child
+    /// indices in range, stack bound correct) and the walk's ray must be [`traversable`].
+    #[inline(always)]
+    unsafe fn step<K: Kernel<N>, const ANY: bool, const COUNT: bool, V: LeafVisitor>(
+        &mut self,
+        nodes: &[WideNode<N>],
+        stack_bound: usize,
+        ray: &mut Ray,
+        leaves: &mut V,
+        stats: &mut WideStats,
+    ) -> bool {
+        let cur = self.cur;
+        let stack = &mut self.stack;
+        if cur.count == 0 {
+            debug_assert!((cur.child as usize) < nodes.len(), "wide traversal: node index out of range");
+            // SAFETY: child indices written by the collapse are in range (validated by
+            // `WideBvh::validate` in the tests), and only used slots are visited (see
+            // `traversable`).
+            let node = unsafe { nodes.get_unchecked(cur.child as usize) };
+            // The child references sit after the boxes, in a line the box test does not read:
+            // ask for it now, so that its load overlaps the box test instead of following it.
+            prefetch_line(node.child.as_ptr().cast());
+            if COUNT {
+                stats.nodes += 1;
+            }
+            let mut t = [0.0f32; N];
+            // SAFETY: the caller guarantees the kernel's instructions.
+            let mask = unsafe { K::test(node, &self.pre, ray.tmax, &mut t) };
+            if mask != 0 {
+                if mask & (mask - 1) == 0 {
+                    let i = mask.trailing_zeros() as usize;
+                    self.cur = Entry { child: node.child[i], count: node.count[i], t: t[i] };
+                    return true;
+                }
+                debug_assert!(stack.sp <= stack_bound, "wide traversal: stack bound exceeded");
+                if ANY {
+                    // Any hit needs no order: push the children in slot order (no sort, no
+                    // distance compare) and go to the first, as Embree's occlusion traversal.
+                    let first = mask.trailing_zeros() as usize;
+                    let mut m = mask & (mask - 1);
+                    while m != 0 {
+                        let i = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        // SAFETY: see `Stack`.
+                        unsafe { push(node, i, t[i], nodes, leaves, stack) };
+                    }
+                    self.cur = Entry { child: node.child[first], count: node.count[first], t: t[first] };
+                    return true;
+                }
+                let rest = mask & (mask - 1);
+                if rest & (rest - 1) == 0 {
+                    // Two children (the common case): push the farther, visit the nearer.
+                    let (a, b) = (mask.trailing_zeros() as usize, rest.trailing_zeros() as usize);
+                    let (near, far) = if t[b] < t[a] { (b, a) } else { (a, b) };
+                    // SAFETY: see `Stack`.
+                    unsafe { push(node, far, t[far], nodes, leaves, stack) };
+                    self.cur = Entry { child: node.child[near], count: node.count[near], t: t[near] };
+                    return true;
+                }
+                // Several children: push all but the nearest, farthest first; go to the nearest.
+                // SAFETY: see `Stack`; the caller guarantees the kernel's instructions.
+                self.cur = unsafe { K::push_sorted(node, &t, mask, nodes, leaves, stack) };
+                return true;
+            }
+        } else {
+            if COUNT {
+                stats.leaves += 1;
+                stats.prims += cur.count;
+            }
+            if leaves.visit(cur.child, cur.count, ray) {
+                self.hit = true;
+                if ANY {
+                    return false;
+                }
+            }
+        }
+        // Pop the next entry that still starts before the closest hit.
+        loop {
+            if stack.sp == 0 {
+                return false;
+            }
+            // SAFETY: `sp > 0`.
+            let e = unsafe { stack.pop() };
+            if e.t <= ray.tmax * ROBUST_SLAB {
+                self.cur = e;
+                return true;
+            }
+        }
+    }
+}
+
+/// The traversal loop of one ray. `ANY`: stop at the first leaf that reports a hit. `COUNT`:
+/// fill `stats`.
 ///
 /// # Safety
 /// The CPU must support `K`'s instructions; `bvh` must be a tree made by the collapse (child
@@ -235,115 +404,132 @@ unsafe fn run<const N: usize, K: Kernel<N>, const ANY: bool, const COUNT: bool, 
     leaves: &mut V,
     stats: &mut WideStats,
 ) -> bool {
-    let nodes = &bvh.nodes;
-    // A ray with a non-finite origin or direction hits nothing, and must not be traversed:
-    // through `inf - inf` or `inf * 0` its slab distances turn NaN, which can make an empty
-    // slot (an inverted ±inf box whose child is 0) look hit, and the loop would push the root
-    // again and again, past the end of the stack. A finite ray never hits an empty slot, so
-    // every pushed entry is a real child and the stack bound holds. One test per ray.
-    if nodes.is_empty() || !(ray.origin.is_finite() && ray.dir.is_finite() && ray.inv_dir.is_finite()) {
+    if bvh.nodes.is_empty() || !traversable(ray) {
         return false;
     }
-    // Room for `stack_bound + N + 1` entries per array (see `Stack`), for nodes of up to 16
-    // children (array lengths cannot depend on `N`).
-    const ROOM: usize = INLINE_STACK + 16 + 1;
-    let mut inline_child = [MaybeUninit::<u32>::uninit(); ROOM];
-    let mut inline_count = [MaybeUninit::<u32>::uninit(); ROOM];
-    let mut inline_t = [MaybeUninit::<f32>::uninit(); ROOM];
-    let (mut heap_child, mut heap_count, mut heap_t) = (Vec::<u32>::new(), Vec::<u32>::new(), Vec::<f32>::new());
-    let mut stack = if bvh.stack_bound < INLINE_STACK && N <= 16 {
-        Stack {
-            child: inline_child.as_mut_ptr().cast(),
-            count: inline_count.as_mut_ptr().cast(),
-            t: inline_t.as_mut_ptr().cast(),
-            sp: 0,
-        }
-    } else {
-        let room = bvh.stack_bound + N + 1;
-        heap_child.reserve_exact(room);
-        heap_count.reserve_exact(room);
-        heap_t.reserve_exact(room);
-        Stack { child: heap_child.as_mut_ptr(), count: heap_count.as_mut_ptr(), t: heap_t.as_mut_ptr(), sp: 0 }
-    };
-    let pre = RayPre::new(ray);
-    let mut t = [0.0f32; N];
-    let mut hit = false;
-    let mut cur = Entry { child: 0, count: 0, t: 0.0 };
-    loop {
-        if cur.count == 0 {
-            debug_assert!((cur.child as usize) < nodes.len(), "wide traversal: node index out of range");
-            // SAFETY: child indices written by the collapse are in range (validated by
-            // `WideBvh::validate` in the tests), and only used slots are visited (see above).
-            let node = unsafe { nodes.get_unchecked(cur.child as usize) };
-            // The child references sit after the boxes, in a line the box test does not read:
-            // ask for it now, so that its load overlaps the box test instead of following it.
-            prefetch_line(node.child.as_ptr().cast());
-            if COUNT {
-                stats.nodes += 1;
-            }
-            // SAFETY: the caller guarantees the kernel's instructions.
-            let mask = unsafe { K::test(node, &pre, ray.tmax, &mut t) };
-            if mask != 0 {
-                if mask & (mask - 1) == 0 {
-                    let i = mask.trailing_zeros() as usize;
-                    cur = Entry { child: node.child[i], count: node.count[i], t: t[i] };
-                    continue;
-                }
-                debug_assert!(stack.sp <= bvh.stack_bound, "wide traversal: stack bound exceeded");
-                if ANY {
-                    // Any hit needs no order: push the children in slot order (no sort, no
-                    // distance compare) and go to the first, as Embree's occlusion traversal.
-                    let first = mask.trailing_zeros() as usize;
-                    let mut m = mask & (mask - 1);
-                    while m != 0 {
-                        let i = m.trailing_zeros() as usize;
-                        m &= m - 1;
-                        // SAFETY: see `Stack`.
-                        unsafe { push(node, i, t[i], nodes, leaves, &mut stack) };
-                    }
-                    cur = Entry { child: node.child[first], count: node.count[first], t: t[first] };
-                    continue;
-                }
-                let rest = mask & (mask - 1);
-                if rest & (rest - 1) == 0 {
-                    // Two children (the common case): push the farther, visit the nearer.
-                    let (a, b) = (mask.trailing_zeros() as usize, rest.trailing_zeros() as usize);
-                    let (near, far) = if t[b] < t[a] { (b, a) } else { (a, b) };
-                    // SAFETY: see `Stack`.
-                    unsafe { push(node, far, t[far], nodes, leaves, &mut stack) };
-                    cur = Entry { child: node.child[near], count: node.count[near], t: t[near] };
-                    continue;
-                }
-                // Several children: push all but the nearest, farthest first; go to the nearest.
-                // SAFETY: see `Stack`; the caller guarantees the kernel's instructions.
-                cur = unsafe { K::push_sorted(node, &t, mask, nodes, leaves, &mut stack) };
-                continue;
-            }
-        } else {
-            if COUNT {
-                stats.leaves += 1;
-                stats.prims += cur.count;
-            }
-            if leaves.visit(cur.child, cur.count, ray) {
-                hit = true;
-                if ANY {
-                    return true;
-                }
-            }
-        }
-        // Pop the next entry that still starts before the closest hit.
-        loop {
-            if stack.sp == 0 {
-                return hit;
-            }
-            // SAFETY: `sp > 0`.
-            let e = unsafe { stack.pop() };
-            if e.t <= ray.tmax * ROBUST_SLAB {
-                cur = e;
-                break;
-            }
-        }
+    let mut room = StackRoom::new();
+    let mut walk = Walk::<N>::start(ray, room.stack(bvh));
+    // SAFETY: the caller guarantees the kernel and the tree; the ray is traversable.
+    while unsafe { walk.step::<K, ANY, COUNT, V>(&bvh.nodes, bvh.stack_bound, ray, leaves, stats) } {}
+    walk.hit
+}
+
+/// One slot of the interleaved loop: the ray it walks, that ray's leaf visitor and walk.
+struct Slot<const N: usize, V> {
+    index: usize,
+    ray: Ray,
+    visitor: V,
+    walk: Walk<N>,
+}
+
+/// Closest hits of `count` rays, `M` of them traversed at once: each round visits one node or
+/// leaf of each busy walk in turn, so that the dependent loads of one ray overlap the work of
+/// the others (the single-ray loop waits for each node before it can choose the next), and a
+/// finished walk takes the next ray. `start(i)` gives ray `i` and its leaf visitor;
+/// `finish(i, ray, visitor, hit)` takes them back when its walk ends (rays that are not
+/// [`traversable`] finish at once, without a hit).
+///
+/// # Safety
+/// As [`run`].
+#[inline(always)]
+unsafe fn run_interleaved<const N: usize, const M: usize, K: Kernel<N>, V: LeafVisitor>(
+    bvh: &WideBvh<N>,
+    count: usize,
+    mut start: impl FnMut(usize) -> (Ray, V),
+    mut finish: impl FnMut(usize, Ray, V, bool),
+) {
+    let mut rooms: [StackRoom; M] = std::array::from_fn(|_| StackRoom::new());
+    let mut slots: [Option<Slot<N, V>>; M] = std::array::from_fn(|_| None);
+    let mut next = 0;
+    let mut busy = 0;
+    for (slot, room) in slots.iter_mut().zip(rooms.iter_mut()) {
+        busy += refill(bvh, count, &mut next, &mut start, &mut finish, slot, room) as usize;
     }
+    // One copy of the step per slot (the `if` folds away for slots beyond `M`): each
+    // slot's branches then have their own addresses in the branch predictor, instead of one
+    // set of branches seeing the rays' outcomes mixed.
+    const { assert!(M >= 1 && M <= 4, "1 to 4 rays at once") };
+    macro_rules! turn {
+        ($k:expr) => {
+            if $k < M {
+                // SAFETY: as this function's.
+                busy -= unsafe {
+                    turn::<N, K, V>(bvh, count, &mut next, &mut start, &mut finish, &mut slots[$k], &mut rooms[$k])
+                } as usize;
+            }
+        };
+    }
+    while busy > 0 {
+        turn!(0);
+        turn!(1);
+        turn!(2);
+        turn!(3);
+    }
+}
+
+/// One slot's turn in [`run_interleaved`]: a step of its walk, then a prefetch of what it
+/// visits next, or, if the walk ended, its ray finished and the next one started. Returns
+/// whether the slot fell idle (no ray left).
+///
+/// # Safety
+/// As [`run_interleaved`].
+#[inline(always)]
+unsafe fn turn<const N: usize, K: Kernel<N>, V: LeafVisitor>(
+    bvh: &WideBvh<N>,
+    count: usize,
+    next: &mut usize,
+    start: &mut impl FnMut(usize) -> (Ray, V),
+    finish: &mut impl FnMut(usize, Ray, V, bool),
+    slot: &mut Option<Slot<N, V>>,
+    room: &mut StackRoom,
+) -> bool {
+    let Some(s) = slot else { return false };
+    let mut stats = WideStats::default();
+    // SAFETY: the caller guarantees the kernel and the tree; the slot's ray is traversable.
+    let going = unsafe {
+        s.walk.step::<K, false, false, V>(&bvh.nodes, bvh.stack_bound, &mut s.ray, &mut s.visitor, &mut stats)
+    };
+    if going {
+        // Ask for what the walk visits next: it comes up again only after the other slots'
+        // steps, time enough for the load.
+        let cur = s.walk.cur;
+        if cur.count == 0 {
+            prefetch_node(&bvh.nodes, cur.child);
+        } else {
+            s.visitor.prefetch(cur.child);
+        }
+        return false;
+    }
+    let Slot { index, ray, visitor, walk } = slot.take().expect("busy slot");
+    finish(index, ray, visitor, walk.hit);
+    !refill(bvh, count, next, start, finish, slot, room)
+}
+
+/// Fills `slot` with the next ray (from `*next` on) that needs a walk, finishing the others
+/// at once; returns whether it found one.
+#[inline(always)]
+fn refill<const N: usize, V>(
+    bvh: &WideBvh<N>,
+    count: usize,
+    next: &mut usize,
+    start: &mut impl FnMut(usize) -> (Ray, V),
+    finish: &mut impl FnMut(usize, Ray, V, bool),
+    slot: &mut Option<Slot<N, V>>,
+    room: &mut StackRoom,
+) -> bool {
+    while *next < count {
+        let index = *next;
+        *next += 1;
+        let (ray, visitor) = start(index);
+        if bvh.nodes.is_empty() || !traversable(&ray) {
+            finish(index, ray, visitor, false);
+            continue;
+        }
+        let walk = Walk::start(&ray, room.stack(bvh));
+        *slot = Some(Slot { index, ray, visitor, walk });
+        return true;
+    }
+    false
 }
 
 /// Pushes child `i` of `node` (entry distance `t`) and asks for its data to be loaded: the
@@ -427,6 +613,34 @@ unsafe fn run_avx2_4<const ANY: bool, const COUNT: bool, V: LeafVisitor>(
     unsafe { run::<4, SseKernel, ANY, COUNT, V>(bvh, ray, leaves, stats) }
 }
 
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn run_interleaved_avx2_8<const M: usize, V: LeafVisitor>(
+    bvh: &WideBvh<8>,
+    count: usize,
+    start: impl FnMut(usize) -> (Ray, V),
+    finish: impl FnMut(usize, Ray, V, bool),
+) {
+    // SAFETY: AVX2 is enabled here, which the caller guarantees the CPU has.
+    unsafe { run_interleaved::<8, M, Avx2Kernel, V>(bvh, count, start, finish) }
+}
+
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn run_interleaved_avx2_4<const M: usize, V: LeafVisitor>(
+    bvh: &WideBvh<4>,
+    count: usize,
+    start: impl FnMut(usize) -> (Ray, V),
+    finish: impl FnMut(usize, Ray, V, bool),
+) {
+    // SAFETY: SSE is baseline; AVX2 (VEX encoding) is what the caller guarantees.
+    unsafe { run_interleaved::<4, M, SseKernel, V>(bvh, count, start, finish) }
+}
+
 pub mod sealed {
     use super::*;
 
@@ -438,6 +652,13 @@ pub mod sealed {
             leaves: &mut V,
             stats: &mut WideStats,
         ) -> bool;
+
+        fn run_interleaved<const M: usize, V: LeafVisitor>(
+            bvh: &WideBvh<N>,
+            count: usize,
+            start: impl FnMut(usize) -> (Ray, V),
+            finish: impl FnMut(usize, Ray, V, bool),
+        );
     }
 }
 
@@ -459,6 +680,23 @@ impl sealed::Sealed<4> for Lanes<4> {
             _ => unsafe { run::<4, ScalarKernel, ANY, COUNT, V>(bvh, ray, leaves, stats) },
         }
     }
+
+    #[inline]
+    fn run_interleaved<const M: usize, V: LeafVisitor>(
+        bvh: &WideBvh<4>,
+        count: usize,
+        start: impl FnMut(usize) -> (Ray, V),
+        finish: impl FnMut(usize, Ray, V, bool),
+    ) {
+        match bvh.simd() {
+            // SAFETY (all arms): as for `run`.
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => unsafe { run_interleaved_avx2_4::<M, V>(bvh, count, start, finish) },
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Sse => unsafe { run_interleaved::<4, M, SseKernel, V>(bvh, count, start, finish) },
+            _ => unsafe { run_interleaved::<4, M, ScalarKernel, V>(bvh, count, start, finish) },
+        }
+    }
 }
 
 impl sealed::Sealed<8> for Lanes<8> {
@@ -476,6 +714,23 @@ impl sealed::Sealed<8> for Lanes<8> {
             #[cfg(target_arch = "x86_64")]
             SimdLevel::Sse => unsafe { run::<8, SseKernel, ANY, COUNT, V>(bvh, ray, leaves, stats) },
             _ => unsafe { run::<8, ScalarKernel, ANY, COUNT, V>(bvh, ray, leaves, stats) },
+        }
+    }
+
+    #[inline]
+    fn run_interleaved<const M: usize, V: LeafVisitor>(
+        bvh: &WideBvh<8>,
+        count: usize,
+        start: impl FnMut(usize) -> (Ray, V),
+        finish: impl FnMut(usize, Ray, V, bool),
+    ) {
+        match bvh.simd() {
+            // SAFETY (all arms): as for `run`.
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => unsafe { run_interleaved_avx2_8::<M, V>(bvh, count, start, finish) },
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Sse => unsafe { run_interleaved::<8, M, SseKernel, V>(bvh, count, start, finish) },
+            _ => unsafe { run_interleaved::<8, M, ScalarKernel, V>(bvh, count, start, finish) },
         }
     }
 }

@@ -375,6 +375,23 @@ where
         visitor.best
     }
 
+    /// [`WideBvh::closest_triangle_slot`] of each of `rays`, into `hits`, with `M` rays
+    /// traversed at once (interleaved: see [`WideBvh::closest_hit_interleaved`]).
+    #[inline]
+    pub fn closest_triangles_interleaved<const M: usize>(
+        &self,
+        tris: &PackedTriangles,
+        rays: &[Ray],
+        hits: &mut [Option<SlotHit>],
+    ) {
+        assert_eq!(rays.len(), hits.len(), "one hit per ray");
+        self.closest_hit_interleaved::<M, _>(
+            rays.len(),
+            |i| (rays[i], ClosestTriangle::new(self, tris)),
+            |i, _, visitor, _| hits[i] = visitor.best,
+        );
+    }
+
     /// Whether any triangle is hit within the ray's interval.
     #[inline]
     pub fn any_triangle(&self, tris: &PackedTriangles, ray: &Ray) -> bool {
