@@ -42,7 +42,7 @@ pub const KINDS: [&str; 4] = ["primary", "incoherent", "diffuse", "shadow"];
 /// The kind traced as any-hit (occlusion) queries.
 pub const SHADOW: &str = "shadow";
 /// Our traversals: the binary reference, wide-4 and wide-8 one ray at a time, and wide-8 with
-/// 2 and 4 rays interleaved (closest hit only; chunks of 256 rays, as the renderer's tiles).
+/// 2 and 4 rays interleaved (in chunks of 256 rays, as the renderer's tiles).
 pub const VARIANTS: [&str; 5] = ["binary", "wide4", "wide8", "wide8-x2", "wide8-x4"];
 
 /// What to measure.
@@ -254,11 +254,22 @@ fn check_hits(
     }
     if kind == SHADOW {
         // Occluded exactly when the closest-hit reference (or brute force) hits something.
-        let wrong = rays.par_iter().zip(reference).position_any(|(r, h)| {
+        let interleaved = |m: usize| {
+            let mut occluded = vec![false; rays.len()];
+            match m {
+                2 => t.wide8.any_triangles_interleaved::<2>(&t.packed8, rays, &mut occluded),
+                _ => t.wide8.any_triangles_interleaved::<4>(&t.packed8, rays, &mut occluded),
+            }
+            occluded
+        };
+        let (x2, x4) = (interleaved(2), interleaved(4));
+        let wrong = rays.par_iter().zip(reference).enumerate().position_any(|(i, (r, h))| {
             let got = [
                 binary_occluded(&t.bvh, &t.tris, r),
                 t.wide4.any_triangle(&t.packed4, r),
                 t.wide8.any_triangle(&t.packed8, r),
+                x2[i],
+                x4[i],
             ];
             got.iter().any(|&g| g != h.is_some() && g != brute_force(&t.tris, r).is_some())
         });
@@ -292,9 +303,8 @@ fn measure_kind(
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
         progress.status(format!("{name}: {kind} rays, {threads} thread(s)"));
         for (i, v) in VARIANTS.iter().enumerate() {
-            if let Some(m) = pool.install(|| variant_throughput(i, kind == SHADOW, rays, trees, options.repeats)) {
-                row.mrays.insert((v.to_string(), threads), m);
-            }
+            let m = pool.install(|| variant_throughput(i, kind == SHADOW, rays, trees, options.repeats));
+            row.mrays.insert((v.to_string(), threads), m);
         }
     }
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
@@ -302,20 +312,20 @@ fn measure_kind(
     Ok(row)
 }
 
-/// Mrays/s of `VARIANTS[variant]`, as any-hit queries for shadow rays (`None`: the variant
-/// has no any-hit query).
-fn variant_throughput(variant: usize, any: bool, rays: &[Ray], t: &Trees, repeats: usize) -> Option<f64> {
-    Some(match (variant, any) {
+/// Mrays/s of `VARIANTS[variant]`, as any-hit queries for shadow rays.
+fn variant_throughput(variant: usize, any: bool, rays: &[Ray], t: &Trees, repeats: usize) -> f64 {
+    match (variant, any) {
         (0, true) => throughput(rays, repeats, |ray| binary_occluded(&t.bvh, &t.tris, ray)),
         (1, true) => throughput(rays, repeats, |ray| t.wide4.any_triangle(&t.packed4, ray)),
         (2, true) => throughput(rays, repeats, |ray| t.wide8.any_triangle(&t.packed8, ray)),
-        (_, true) => return None,
+        (3, true) => interleaved_any::<2>(rays, repeats, t),
+        (_, true) => interleaved_any::<4>(rays, repeats, t),
         (0, false) => throughput(rays, repeats, |ray| binary_hit(&t.bvh, &t.tris, ray).is_some()),
         (1, false) => throughput(rays, repeats, |ray| wide_hit(&t.wide4, &t.packed4, ray).is_some()),
         (2, false) => throughput(rays, repeats, |ray| wide_hit(&t.wide8, &t.packed8, ray).is_some()),
         (3, false) => interleaved::<2>(rays, repeats, t),
         _ => interleaved::<4>(rays, repeats, t),
-    })
+    }
 }
 
 /// Mrays/s of the wide-8 closest-hit traversal with `M` rays interleaved.
@@ -324,6 +334,15 @@ fn interleaved<const M: usize>(rays: &[Ray], repeats: usize, t: &Trees) -> f64 {
         let mut hits = vec![None; chunk.len()];
         t.wide8.closest_triangles_interleaved::<M>(&t.packed8, chunk, &mut hits);
         hits.iter().filter(|h| h.is_some()).count()
+    })
+}
+
+/// Mrays/s of the wide-8 any-hit traversal with `M` rays interleaved.
+fn interleaved_any<const M: usize>(rays: &[Ray], repeats: usize, t: &Trees) -> f64 {
+    crate::throughput::throughput_batched(rays, repeats, |chunk| {
+        let mut occluded = vec![false; chunk.len()];
+        t.wide8.any_triangles_interleaved::<M>(&t.packed8, chunk, &mut occluded);
+        occluded.iter().filter(|&&o| o).count()
     })
 }
 
@@ -366,7 +385,7 @@ fn work_per_ray(row: &mut Row, rays: &[Ray], reference: &[Hit], t: &Trees, repea
     });
     let full = match row.get("wide8", 1) {
         Some(m) => m,
-        None => variant_throughput(2, row.kind == SHADOW, rays, t, repeats).expect("wide-8 answers both queries"),
+        None => variant_throughput(2, row.kind == SHADOW, rays, t, repeats),
     };
     row.traversal_share = full / traversal;
 }

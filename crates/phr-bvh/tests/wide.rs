@@ -145,6 +145,15 @@ fn check_interleaved<const N: usize>(
     wide.closest_triangles_interleaved::<4>(packed, few, &mut few_hits);
     assert_eq!(few_hits, single[..few.len()], "{what}: fewer rays than slots");
     wide.closest_triangles_interleaved::<4>(packed, &[], &mut []);
+    // Any-hit queries likewise.
+    let single: Vec<bool> = rays.iter().map(|r| wide.any_triangle(packed, r)).collect();
+    let mut occluded = vec![false; rays.len()];
+    wide.any_triangles_interleaved::<1>(packed, rays, &mut occluded);
+    assert_eq!(occluded, single, "{what}: any hit, 1 ray at once");
+    wide.any_triangles_interleaved::<2>(packed, rays, &mut occluded);
+    assert_eq!(occluded, single, "{what}: any hit, 2 rays at once");
+    wide.any_triangles_interleaved::<4>(packed, rays, &mut occluded);
+    assert_eq!(occluded, single, "{what}: any hit, 4 rays at once");
 }
 
 #[test]
@@ -420,6 +429,16 @@ fn non_finite_rays_hit_nothing_and_stay_memory_safe() {
                 );
             }
             assert!(hits.iter().step_by(2).any(Option::is_some), "some finite ray hits");
+            let mut occluded = vec![false; mixed.len()];
+            wide.any_triangles_interleaved::<3>(&packed, &mixed, &mut occluded);
+            for (ray, &o) in mixed.iter().zip(&occluded) {
+                assert_eq!(
+                    o,
+                    wide.any_triangle(&packed, ray),
+                    "wide-{N} {}, interleaved any hit, ray {ray:?}",
+                    level.name()
+                );
+            }
         }
     }
     run::<4>(&bvh, &tris, &rays, &finite_nan_interval);

@@ -98,12 +98,37 @@ pub struct Path {
     /// The previous vertex, if it sampled the lights (`None`: the camera, or a mirror or
     /// glass, whose direction no light sample could have taken).
     lit: Option<LitVertex>,
+    /// The light sample of the last segment, waiting for its shadow ray's answer.
+    shadow: Option<Shadow>,
+}
+
+/// A light sample and what it adds to the path's radiance if nothing blocks its shadow ray.
+#[derive(Clone, Copy)]
+struct Shadow {
+    ray: Ray,
+    radiance: Vec3,
 }
 
 impl Path {
     /// A path whose first segment is `ray`.
     pub fn new(ray: Ray) -> Self {
-        Self { ray, radiance: Vec3::ZERO, throughput: Vec3::ONE, segment: 0, rays: 0, lit: None }
+        Self { ray, radiance: Vec3::ZERO, throughput: Vec3::ONE, segment: 0, rays: 0, lit: None, shadow: None }
+    }
+
+    /// The shadow ray of the light sample [`PathTracer::advance`] left waiting, if any (it
+    /// leaves one at most, whether or not the path goes on).
+    pub fn shadow_ray(&self) -> Option<Ray> {
+        self.shadow.map(|s| s.ray)
+    }
+
+    /// Settles the waiting light sample with its shadow ray's answer: the light arrives
+    /// unless `occluded`. Call it before the path's next [`PathTracer::advance`].
+    pub fn settle_shadow(&mut self, occluded: bool) {
+        if let Some(s) = self.shadow.take() {
+            if !occluded {
+                self.radiance += s.radiance;
+            }
+        }
     }
 
     /// What the path has gathered (its estimate once [`PathTracer::advance`] has said it
@@ -135,7 +160,11 @@ impl PathTracer<'_> {
         let mut path = Path::new(ray);
         loop {
             let hit = self.geometry.intersect(&path.ray);
-            if !self.advance::<GUIDE>(&mut path, hit, rng, first) {
+            let going = self.advance::<GUIDE>(&mut path, hit, rng, first);
+            if let Some(shadow) = path.shadow_ray() {
+                path.settle_shadow(self.geometry.occluded(&shadow));
+            }
+            if !going {
                 break;
             }
         }
@@ -144,7 +173,10 @@ impl PathTracer<'_> {
 
     /// One segment of `path`: `hit` is the closest hit of `path.ray` (the caller traced it).
     /// Gathers what the segment brings and, if the path goes on, sets `path.ray` to the next
-    /// segment's ray and returns true. `GUIDE`: record the first hit in `first`.
+    /// segment's ray and returns true. With light sampling it may leave a light sample
+    /// waiting for its shadow ray ([`Path::shadow_ray`]), which the caller traces and settles
+    /// ([`Path::settle_shadow`]) before the next segment. `GUIDE`: record the first hit in
+    /// `first`.
     #[inline(always)]
     pub fn advance<const GUIDE: bool>(
         &self,
@@ -275,11 +307,10 @@ impl PathTracer<'_> {
                         Some(p) => Ray::with_interval(origin, p - origin, 0.0, 1.0 - 1e-4),
                         None => Ray::new(origin, light.dir),
                     };
-                    if !self.geometry.occluded(&shadow) {
-                        let weight = power_heuristic(light.pdf, lobe_pdf);
-                        // BSDF × cosine = scatter weight × lobe density, over the light's.
-                        path.radiance += path.throughput * albedo * light.radiance * (lobe_pdf * weight / light.pdf);
-                    }
+                    let weight = power_heuristic(light.pdf, lobe_pdf);
+                    // BSDF × cosine = scatter weight × lobe density, over the light's.
+                    let radiance = path.throughput * albedo * light.radiance * (lobe_pdf * weight / light.pdf);
+                    path.shadow = Some(Shadow { ray: shadow, radiance });
                 }
             }
         }

@@ -157,22 +157,40 @@ impl Renderer<'_> {
                 paths.push((Path::new(ray), rng, FirstHit::SKY));
             }
         }
+        let geometry = self.tracer.geometry;
         let mut live: Vec<usize> = (0..paths.len()).collect();
         let mut rays = Vec::with_capacity(paths.len());
         let mut hits = Vec::with_capacity(paths.len());
+        // The paths whose light sample waits for its shadow ray, and their answers.
+        let mut waiting = Vec::with_capacity(paths.len());
+        let mut occluded = Vec::with_capacity(paths.len());
         while !live.is_empty() {
             rays.clear();
             rays.extend(live.iter().map(|&i| paths[i].0.ray));
             hits.clear();
             hits.resize(rays.len(), None);
-            self.tracer.geometry.intersect_batch(&rays, &mut hits);
+            geometry.intersect_batch(&rays, &mut hits);
             let mut k = 0;
+            waiting.clear();
             live.retain(|&i| {
                 let (path, rng, first) = &mut paths[i];
                 let going = self.tracer.advance::<GUIDE>(path, hits[k], rng, first);
                 k += 1;
+                if path.shadow_ray().is_some() {
+                    waiting.push(i);
+                }
                 going
             });
+            if !waiting.is_empty() {
+                rays.clear();
+                rays.extend(waiting.iter().filter_map(|&i| paths[i].0.shadow_ray()));
+                occluded.clear();
+                occluded.resize(rays.len(), false);
+                geometry.occluded_batch(&rays, &mut occluded);
+                for (&i, &blocked) in waiting.iter().zip(&occluded) {
+                    paths[i].0.settle_shadow(blocked);
+                }
+            }
         }
         let mut traced = 0;
         let pixels = paths

@@ -385,7 +385,20 @@ where
         start: impl FnMut(usize) -> (Ray, V),
         finish: impl FnMut(usize, Ray, V, bool),
     ) {
-        <Lanes<N> as traverse::sealed::Sealed<N>>::run_interleaved::<M, V>(self, count, start, finish)
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run_interleaved::<M, false, V>(self, count, start, finish)
+    }
+
+    /// Any-hit queries of `count` rays, `M` of them traversed at once: as
+    /// [`WideBvh::closest_hit_interleaved`], each walk stopping at the first leaf whose visit
+    /// returns true (`hit` in `finish`), as [`WideBvh::any_hit_visit`] does.
+    #[inline]
+    pub fn any_hit_interleaved<const M: usize, V: LeafVisitor>(
+        &self,
+        count: usize,
+        start: impl FnMut(usize) -> (Ray, V),
+        finish: impl FnMut(usize, Ray, V, bool),
+    ) {
+        <Lanes<N> as traverse::sealed::Sealed<N>>::run_interleaved::<M, true, V>(self, count, start, finish)
     }
 
     /// Any hit with a [`LeafVisitor`]: stops at the first leaf whose visit returns true.

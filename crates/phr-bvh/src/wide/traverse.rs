@@ -422,7 +422,7 @@ struct Slot<const N: usize, V> {
     walk: Walk<N>,
 }
 
-/// Closest hits of `count` rays, `M` of them traversed at once: each round visits one node or
+/// Closest hits (`ANY`: any hits) of `count` rays, `M` of them traversed at once: each round visits one node or
 /// leaf of each busy walk in turn, so that the dependent loads of one ray overlap the work of
 /// the others (the single-ray loop waits for each node before it can choose the next), and a
 /// finished walk takes the next ray. `start(i)` gives ray `i` and its leaf visitor;
@@ -432,7 +432,7 @@ struct Slot<const N: usize, V> {
 /// # Safety
 /// As [`run`].
 #[inline(always)]
-unsafe fn run_interleaved<const N: usize, const M: usize, K: Kernel<N>, V: LeafVisitor>(
+unsafe fn run_interleaved<const N: usize, const M: usize, const ANY: bool, K: Kernel<N>, V: LeafVisitor>(
     bvh: &WideBvh<N>,
     count: usize,
     mut start: impl FnMut(usize) -> (Ray, V),
@@ -454,7 +454,7 @@ unsafe fn run_interleaved<const N: usize, const M: usize, K: Kernel<N>, V: LeafV
             if $k < M {
                 // SAFETY: as this function's.
                 busy -= unsafe {
-                    turn::<N, K, V>(bvh, count, &mut next, &mut start, &mut finish, &mut slots[$k], &mut rooms[$k])
+                    turn::<N, K, ANY, V>(bvh, count, &mut next, &mut start, &mut finish, &mut slots[$k], &mut rooms[$k])
                 } as usize;
             }
         };
@@ -474,7 +474,7 @@ unsafe fn run_interleaved<const N: usize, const M: usize, K: Kernel<N>, V: LeafV
 /// # Safety
 /// As [`run_interleaved`].
 #[inline(always)]
-unsafe fn turn<const N: usize, K: Kernel<N>, V: LeafVisitor>(
+unsafe fn turn<const N: usize, K: Kernel<N>, const ANY: bool, V: LeafVisitor>(
     bvh: &WideBvh<N>,
     count: usize,
     next: &mut usize,
@@ -486,9 +486,8 @@ unsafe fn turn<const N: usize, K: Kernel<N>, V: LeafVisitor>(
     let Some(s) = slot else { return false };
     let mut stats = WideStats::default();
     // SAFETY: the caller guarantees the kernel and the tree; the slot's ray is traversable.
-    let going = unsafe {
-        s.walk.step::<K, false, false, V>(&bvh.nodes, bvh.stack_bound, &mut s.ray, &mut s.visitor, &mut stats)
-    };
+    let going =
+        unsafe { s.walk.step::<K, ANY, false, V>(&bvh.nodes, bvh.stack_bound, &mut s.ray, &mut s.visitor, &mut stats) };
     if going {
         // Ask for what the walk visits next: it comes up again only after the other slots'
         // steps, time enough for the load.
@@ -617,28 +616,28 @@ unsafe fn run_avx2_4<const ANY: bool, const COUNT: bool, V: LeafVisitor>(
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn run_interleaved_avx2_8<const M: usize, V: LeafVisitor>(
+unsafe fn run_interleaved_avx2_8<const M: usize, const ANY: bool, V: LeafVisitor>(
     bvh: &WideBvh<8>,
     count: usize,
     start: impl FnMut(usize) -> (Ray, V),
     finish: impl FnMut(usize, Ray, V, bool),
 ) {
     // SAFETY: AVX2 is enabled here, which the caller guarantees the CPU has.
-    unsafe { run_interleaved::<8, M, Avx2Kernel, V>(bvh, count, start, finish) }
+    unsafe { run_interleaved::<8, M, ANY, Avx2Kernel, V>(bvh, count, start, finish) }
 }
 
 /// # Safety
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn run_interleaved_avx2_4<const M: usize, V: LeafVisitor>(
+unsafe fn run_interleaved_avx2_4<const M: usize, const ANY: bool, V: LeafVisitor>(
     bvh: &WideBvh<4>,
     count: usize,
     start: impl FnMut(usize) -> (Ray, V),
     finish: impl FnMut(usize, Ray, V, bool),
 ) {
     // SAFETY: SSE is baseline; AVX2 (VEX encoding) is what the caller guarantees.
-    unsafe { run_interleaved::<4, M, SseKernel, V>(bvh, count, start, finish) }
+    unsafe { run_interleaved::<4, M, ANY, SseKernel, V>(bvh, count, start, finish) }
 }
 
 pub mod sealed {
@@ -653,7 +652,7 @@ pub mod sealed {
             stats: &mut WideStats,
         ) -> bool;
 
-        fn run_interleaved<const M: usize, V: LeafVisitor>(
+        fn run_interleaved<const M: usize, const ANY: bool, V: LeafVisitor>(
             bvh: &WideBvh<N>,
             count: usize,
             start: impl FnMut(usize) -> (Ray, V),
@@ -682,7 +681,7 @@ impl sealed::Sealed<4> for Lanes<4> {
     }
 
     #[inline]
-    fn run_interleaved<const M: usize, V: LeafVisitor>(
+    fn run_interleaved<const M: usize, const ANY: bool, V: LeafVisitor>(
         bvh: &WideBvh<4>,
         count: usize,
         start: impl FnMut(usize) -> (Ray, V),
@@ -691,10 +690,10 @@ impl sealed::Sealed<4> for Lanes<4> {
         match bvh.simd() {
             // SAFETY (all arms): as for `run`.
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Avx2 => unsafe { run_interleaved_avx2_4::<M, V>(bvh, count, start, finish) },
+            SimdLevel::Avx2 => unsafe { run_interleaved_avx2_4::<M, ANY, V>(bvh, count, start, finish) },
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Sse => unsafe { run_interleaved::<4, M, SseKernel, V>(bvh, count, start, finish) },
-            _ => unsafe { run_interleaved::<4, M, ScalarKernel, V>(bvh, count, start, finish) },
+            SimdLevel::Sse => unsafe { run_interleaved::<4, M, ANY, SseKernel, V>(bvh, count, start, finish) },
+            _ => unsafe { run_interleaved::<4, M, ANY, ScalarKernel, V>(bvh, count, start, finish) },
         }
     }
 }
@@ -718,7 +717,7 @@ impl sealed::Sealed<8> for Lanes<8> {
     }
 
     #[inline]
-    fn run_interleaved<const M: usize, V: LeafVisitor>(
+    fn run_interleaved<const M: usize, const ANY: bool, V: LeafVisitor>(
         bvh: &WideBvh<8>,
         count: usize,
         start: impl FnMut(usize) -> (Ray, V),
@@ -727,10 +726,10 @@ impl sealed::Sealed<8> for Lanes<8> {
         match bvh.simd() {
             // SAFETY (all arms): as for `run`.
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Avx2 => unsafe { run_interleaved_avx2_8::<M, V>(bvh, count, start, finish) },
+            SimdLevel::Avx2 => unsafe { run_interleaved_avx2_8::<M, ANY, V>(bvh, count, start, finish) },
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Sse => unsafe { run_interleaved::<8, M, SseKernel, V>(bvh, count, start, finish) },
-            _ => unsafe { run_interleaved::<8, M, ScalarKernel, V>(bvh, count, start, finish) },
+            SimdLevel::Sse => unsafe { run_interleaved::<8, M, ANY, SseKernel, V>(bvh, count, start, finish) },
+            _ => unsafe { run_interleaved::<8, M, ANY, ScalarKernel, V>(bvh, count, start, finish) },
         }
     }
 }

@@ -392,6 +392,23 @@ where
         );
     }
 
+    /// [`WideBvh::any_triangle`] of each of `rays`, into `occluded`, with `M` rays traversed
+    /// at once.
+    #[inline]
+    pub fn any_triangles_interleaved<const M: usize>(
+        &self,
+        tris: &PackedTriangles,
+        rays: &[Ray],
+        occluded: &mut [bool],
+    ) {
+        assert_eq!(rays.len(), occluded.len(), "one answer per ray");
+        self.any_hit_interleaved::<M, _>(
+            rays.len(),
+            |i| (rays[i], AnyTriangle(tris)),
+            |i, _, _, hit| occluded[i] = hit,
+        );
+    }
+
     /// Whether any triangle is hit within the ray's interval.
     #[inline]
     pub fn any_triangle(&self, tris: &PackedTriangles, ray: &Ray) -> bool {

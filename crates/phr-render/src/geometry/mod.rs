@@ -38,7 +38,8 @@ use phr_bvh::builder::BuildReport;
 use phr_bvh::instance::{Instance, TopLevel};
 use phr_bvh::sphere::Sphere;
 use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
-use phr_bvh::wide::triangles::ClosestTriangle;
+use phr_bvh::wide::triangles::{AnyTriangle, ClosestTriangle};
+use phr_bvh::wide::LeafVisitor;
 use phr_bvh::wide::{WideStats, PAD};
 use phr_bvh::{closest_hit_counted, Aabb, Builder, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
 use std::borrow::Cow;
@@ -666,29 +667,54 @@ impl Geometry {
         best
     }
 
-    /// [`Geometry::intersect`] of each of `rays`, into `hits`. A scene of triangles under one
-    /// tree (no instances, copies or spheres) traces them [`INTERLEAVE`] at a time through
-    /// the interleaved wide traversal, whose rays overlap each other's memory waits; any
-    /// other scene traces them one by one. The hits are the same either way.
+    /// [`Geometry::intersect`] of each of `rays`, into `hits`. A scene under one tree (no
+    /// instances or copies) traces them 2 or 4 at a time through the interleaved wide
+    /// traversal, whose rays overlap each other's memory waits ([`INTERLEAVE_FROM_CACHE`],
+    /// [`INTERLEAVE_FROM_MEMORY`]); any other scene traces them one by one. The hits are the
+    /// same either way.
     pub fn intersect_batch(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
-        let part = &self.parts[0];
-        if self.placement.is_some() || !self.copies.is_empty() || part.has_spheres {
+        let Some(part) = self.single_tree() else {
             for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
                 *hit = self.intersect(ray);
             }
             return;
-        }
-        let start = |i: usize| (rays[i], ClosestTriangle::new(&part.wide, &part.packed));
-        let finish = |i: usize, _, visitor: ClosestTriangle, _| {
-            hits[i] =
-                visitor.best.map(|h| Hit { t: h.hit.t, prim: h.prim, u: h.hit.u, v: h.hit.v, slot: h.slot, part: 0 })
         };
-        if part.traced_bytes() > last_level_cache() {
-            part.wide.closest_hit_interleaved::<{ INTERLEAVE_FROM_MEMORY }, _>(rays.len(), start, finish);
+        if part.has_spheres {
+            let start = |i: usize| (rays[i], PartLeaves { geometry: self, part, best: None });
+            part.interleave::<false, _>(rays.len(), start, |i, _, leaves, _| hits[i] = leaves.best);
         } else {
-            part.wide.closest_hit_interleaved::<{ INTERLEAVE_FROM_CACHE }, _>(rays.len(), start, finish);
+            let start = |i: usize| (rays[i], ClosestTriangle::new(&part.wide, &part.packed));
+            part.interleave::<false, _>(rays.len(), start, |i, _, leaves, _| {
+                hits[i] =
+                    leaves.best.map(|h| Hit { t: h.hit.t, prim: h.prim, u: h.hit.u, v: h.hit.v, slot: h.slot, part: 0 })
+            });
         }
+    }
+
+    /// [`Geometry::occluded`] of each of `rays`, into `occluded`: interleaved as
+    /// [`Geometry::intersect_batch`] on a scene under one tree, one by one otherwise.
+    pub fn occluded_batch(&self, rays: &[Ray], occluded: &mut [bool]) {
+        assert_eq!(rays.len(), occluded.len(), "one answer per ray");
+        let Some(part) = self.single_tree() else {
+            for (ray, answer) in rays.iter().zip(occluded.iter_mut()) {
+                *answer = self.occluded(ray);
+            }
+            return;
+        };
+        if part.has_spheres {
+            let start = |i: usize| (rays[i], PartLeaves { geometry: self, part, best: None });
+            part.interleave::<true, _>(rays.len(), start, |i, _, _, hit| occluded[i] = hit);
+        } else {
+            let start = |i: usize| (rays[i], AnyTriangle(&part.packed));
+            part.interleave::<true, _>(rays.len(), start, |i, _, _, hit| occluded[i] = hit);
+        }
+    }
+
+    /// The one part of a scene under one tree (no instances or copies), whose rays the batch
+    /// queries interleave.
+    fn single_tree(&self) -> Option<&Part> {
+        (self.placement.is_none() && self.copies.is_empty()).then(|| &self.parts[0])
     }
 
     /// Whether anything lies along `ray` within its interval (shadow rays): stops at the
@@ -860,6 +886,25 @@ impl Part {
             .fold(Aabb::EMPTY, |b, i| b.union(instance.world_box(root.child_bounds(i))))
     }
 
+    /// Closest-hit (`ANY`: any-hit) queries of `count` rays through this part's wide tree,
+    /// interleaved: [`INTERLEAVE_FROM_CACHE`] rays at once when the tree and its triangles fit
+    /// the last-level cache, [`INTERLEAVE_FROM_MEMORY`] when they do not.
+    #[inline(always)]
+    fn interleave<const ANY: bool, V: LeafVisitor>(
+        &self,
+        count: usize,
+        start: impl FnMut(usize) -> (Ray, V),
+        finish: impl FnMut(usize, Ray, V, bool),
+    ) {
+        let wide = &self.wide;
+        match (ANY, self.traced_bytes() <= last_level_cache()) {
+            (false, true) => wide.closest_hit_interleaved::<{ INTERLEAVE_FROM_CACHE }, _>(count, start, finish),
+            (false, false) => wide.closest_hit_interleaved::<{ INTERLEAVE_FROM_MEMORY }, _>(count, start, finish),
+            (true, true) => wide.any_hit_interleaved::<{ INTERLEAVE_FROM_CACHE }, _>(count, start, finish),
+            (true, false) => wide.any_hit_interleaved::<{ INTERLEAVE_FROM_MEMORY }, _>(count, start, finish),
+        }
+    }
+
     /// Bytes of what the renderer traces: the wide tree and the packed triangles.
     fn traced_bytes(&self) -> usize {
         use std::mem::size_of;
@@ -899,15 +944,9 @@ impl Part {
             });
         }
         let mut r = *ray;
-        let mut best = None;
-        self.wide.closest_hit_leaves(&mut r, |first, count, r| {
-            let mut hit = false;
-            for i in first..first + count {
-                hit |= self.test_packed(g, k, i, r, &mut best);
-            }
-            hit
-        });
-        best
+        let mut leaves = PartLeaves { geometry: g, part: self, best: None };
+        self.wide.closest_hit_visit(&mut r, &mut leaves);
+        leaves.best.map(|h| Hit { part: k, ..h })
     }
 
     /// Whether anything in this part lies along `ray` (object space).
@@ -928,6 +967,31 @@ impl Part {
                 }
             })
         })
+    }
+}
+
+/// The leaf test of a part with spheres among its triangles, as a [`LeafVisitor`]: each
+/// entry by [`Part::test_packed`], keeping the closest hit (its `part` is 0: callers set
+/// theirs). As an any-hit test, whether a visit kept a hit.
+struct PartLeaves<'a> {
+    geometry: &'a Geometry,
+    part: &'a Part,
+    best: Option<Hit>,
+}
+
+impl LeafVisitor for PartLeaves<'_> {
+    #[inline(always)]
+    fn visit(&mut self, first: u32, count: u32, ray: &mut Ray) -> bool {
+        let mut hit = false;
+        for i in first..first + count {
+            hit |= self.part.test_packed(self.geometry, 0, i, ray, &mut self.best);
+        }
+        hit
+    }
+
+    #[inline(always)]
+    fn prefetch(&self, first: u32) {
+        self.part.packed.prefetch(first);
     }
 }
 
