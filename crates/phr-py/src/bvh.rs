@@ -303,11 +303,15 @@ impl Bvh {
                 .collect();
             py.detach(|| {
                 self.pool.for_each(chunks, |(first, t, prim, uv)| {
-                    for (i, ((t, prim), uv)) in (first..).zip(t.iter_mut().zip(prim).zip(uv.chunks_exact_mut(2))) {
-                        match rays.get(i).and_then(|ray| self.wide.closest_triangle(&self.packed, &ray)) {
-                            Some((p, h)) => {
-                                (*t, *prim) = (h.t, p.into());
-                                uv.copy_from_slice(&[h.u, h.v]);
+                    // The chunk's rays traced together, several at once (interleaved).
+                    let chunk = rays.chunk(first, t.len());
+                    let mut hits = vec![None; chunk.len()];
+                    self.wide.closest_triangles_batch(&self.packed, &chunk, &mut hits);
+                    for (hit, ((t, prim), uv)) in hits.iter().zip(t.iter_mut().zip(prim).zip(uv.chunks_exact_mut(2))) {
+                        match hit {
+                            Some(h) => {
+                                (*t, *prim) = (h.hit.t, h.prim.into());
+                                uv.copy_from_slice(&[h.hit.u, h.hit.v]);
                             }
                             None => (*t, *prim) = (f32::INFINITY, -1),
                         }
@@ -336,9 +340,8 @@ impl Bvh {
         let chunks: Vec<_> = hit.chunks_mut(RAY_CHUNK).enumerate().map(|(c, hit)| (c * RAY_CHUNK, hit)).collect();
         py.detach(|| {
             self.pool.for_each(chunks, |(first, hit)| {
-                for (i, hit) in (first..).zip(hit) {
-                    *hit = rays.get(i).is_some_and(|ray| self.wide.any_triangle(&self.packed, &ray));
-                }
+                let chunk = rays.chunk(first, hit.len());
+                self.wide.any_triangles_batch(&self.packed, &chunk, hit);
             })
         });
         Ok(PyArray1::from_vec(py, hit))
@@ -372,6 +375,12 @@ impl<'a> Rays<'a> {
 
     fn len(&self) -> usize {
         self.origins.len()
+    }
+
+    /// Rays `first..first + count`, those that cannot hit anything as a ray the traversal
+    /// refuses at once (a NaN origin).
+    fn chunk(&self, first: usize, count: usize) -> Vec<Ray> {
+        (first..first + count).map(|i| self.get(i).unwrap_or_else(|| Ray::new(Vec3::NAN, Vec3::X))).collect()
     }
 
     /// Ray `i`, or `None` if it cannot hit anything (non-finite, or a zero direction).

@@ -75,6 +75,7 @@
 #[cfg(target_arch = "x86_64")]
 pub mod child_order;
 pub mod collapse;
+pub mod interleave;
 pub(crate) mod pieces;
 mod refit;
 pub mod simd;

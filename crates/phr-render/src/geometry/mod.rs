@@ -39,7 +39,7 @@ use phr_bvh::instance::{Instance, TopLevel};
 use phr_bvh::sphere::Sphere;
 use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
 use phr_bvh::wide::triangles::{AnyTriangle, ClosestTriangle};
-use phr_bvh::wide::LeafVisitor;
+use phr_bvh::wide::{interleave, LeafVisitor};
 use phr_bvh::wide::{WideStats, PAD};
 use phr_bvh::{closest_hit_counted, Aabb, Builder, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
 use std::borrow::Cow;
@@ -190,44 +190,6 @@ fn scatter_ascending(dst: &mut [Aabb], offset: usize, indices: &[u32], src: &[Aa
 
 /// The width of the wide BVH the renderer traces (see the module documentation).
 pub const WIDTH: usize = 8;
-
-/// Rays traced at once by [`Geometry::intersect_batch`]'s interleaved traversal when the
-/// tree and its triangles do not fit the last-level cache: each node visit then waits on
-/// memory, and the more rays share the wait the better (`phr bench-rays`, the dragon's 65 MB:
-/// 1.7–1.8× the single ray's rate with 4, 1.3× with 2).
-pub const INTERLEAVE_FROM_MEMORY: usize = 4;
-
-/// The same when they fit: the waits are short, and more rays in flight cost more in
-/// branch prediction than they save (Sponza's 5 MB and Conference's 23 MB: 2 rays gain 0–17 %,
-/// 4 lose up to 26 %).
-pub const INTERLEAVE_FROM_CACHE: usize = 2;
-
-/// The size of this CPU's last-level cache in bytes (Linux's sysfs; 32 MiB where it cannot
-/// be read).
-fn last_level_cache() -> usize {
-    use std::sync::OnceLock;
-    static SIZE: OnceLock<usize> = OnceLock::new();
-    *SIZE.get_or_init(|| {
-        (0..8)
-            .rev()
-            .find_map(|i| {
-                let text = std::fs::read_to_string(format!("/sys/devices/system/cpu/cpu0/cache/index{i}/size")).ok()?;
-                parse_cache_size(text.trim())
-            })
-            .unwrap_or(32 << 20)
-    })
-}
-
-/// A sysfs cache size (`32768K`, `1M`, or bytes) in bytes.
-fn parse_cache_size(text: &str) -> Option<usize> {
-    let (digits, unit) = match text.as_bytes().last()? {
-        b'K' => (&text[..text.len() - 1], 1 << 10),
-        b'M' => (&text[..text.len() - 1], 1 << 20),
-        b'G' => (&text[..text.len() - 1], 1 << 30),
-        _ => (text, 1),
-    };
-    digits.parse::<usize>().ok().map(|n| n * unit)
-}
 
 /// Secondary-ray offsets, relative to `1 + max|p|` (see `shared/reference/README.md`): a few
 /// hundred float32 ulps for triangles, whose hit points come from barycentrics and are
@@ -669,9 +631,8 @@ impl Geometry {
 
     /// [`Geometry::intersect`] of each of `rays`, into `hits`. A scene under one tree (no
     /// instances or copies) traces them 2 or 4 at a time through the interleaved wide
-    /// traversal, whose rays overlap each other's memory waits ([`INTERLEAVE_FROM_CACHE`],
-    /// [`INTERLEAVE_FROM_MEMORY`]); any other scene traces them one by one. The hits are the
-    /// same either way.
+    /// traversal, whose rays overlap each other's memory waits ([`phr_bvh::wide::interleave`]);
+    /// any other scene traces them one by one. The hits are the same either way.
     pub fn intersect_batch(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
         let Some(part) = self.single_tree() else {
@@ -887,8 +848,8 @@ impl Part {
     }
 
     /// Closest-hit (`ANY`: any-hit) queries of `count` rays through this part's wide tree,
-    /// interleaved: [`INTERLEAVE_FROM_CACHE`] rays at once when the tree and its triangles fit
-    /// the last-level cache, [`INTERLEAVE_FROM_MEMORY`] when they do not.
+    /// interleaved, as many rays at once as its size calls for
+    /// ([`phr_bvh::wide::interleave`]).
     #[inline(always)]
     fn interleave<const ANY: bool, V: LeafVisitor>(
         &self,
@@ -896,12 +857,13 @@ impl Part {
         start: impl FnMut(usize) -> (Ray, V),
         finish: impl FnMut(usize, Ray, V, bool),
     ) {
+        let fits = interleave::fits_cache(self.traced_bytes());
         let wide = &self.wide;
-        match (ANY, self.traced_bytes() <= last_level_cache()) {
-            (false, true) => wide.closest_hit_interleaved::<{ INTERLEAVE_FROM_CACHE }, _>(count, start, finish),
-            (false, false) => wide.closest_hit_interleaved::<{ INTERLEAVE_FROM_MEMORY }, _>(count, start, finish),
-            (true, true) => wide.any_hit_interleaved::<{ INTERLEAVE_FROM_CACHE }, _>(count, start, finish),
-            (true, false) => wide.any_hit_interleaved::<{ INTERLEAVE_FROM_MEMORY }, _>(count, start, finish),
+        match (ANY, fits) {
+            (false, true) => wide.closest_hit_interleaved::<{ interleave::FROM_CACHE }, _>(count, start, finish),
+            (false, false) => wide.closest_hit_interleaved::<{ interleave::FROM_MEMORY }, _>(count, start, finish),
+            (true, true) => wide.any_hit_interleaved::<{ interleave::FROM_CACHE }, _>(count, start, finish),
+            (true, false) => wide.any_hit_interleaved::<{ interleave::FROM_MEMORY }, _>(count, start, finish),
         }
     }
 
