@@ -573,11 +573,17 @@ impl Geometry {
     /// Calls `search(k, ray)` for every part `k` the ray may hit, with the ray in the part's
     /// object space and its `tmax` the closest hit so far: parts in place first, then the
     /// moved ones. `search` shrinks `tmax` on a hit and returns true. `ANY`: stop at the first.
+    /// `IN_PLACE` false: the moved parts alone (the batch queries search the parts in place
+    /// themselves, [`Geometry::in_place_parts`]).
     #[inline(always)]
-    fn search_parts<const ANY: bool>(&self, ray: &mut Ray, mut search: impl FnMut(u32, &mut Ray) -> bool) -> bool {
-        let Some(placement) = &self.placement else { return search(0, ray) };
+    fn search_parts<const ANY: bool, const IN_PLACE: bool>(
+        &self,
+        ray: &mut Ray,
+        mut search: impl FnMut(u32, &mut Ray) -> bool,
+    ) -> bool {
+        let Some(placement) = &self.placement else { return IN_PLACE && search(0, ray) };
         let mut found = false;
-        for &(k, bounds) in &placement.in_place {
+        for &(k, bounds) in placement.in_place.iter().filter(|_| IN_PLACE) {
             if bounds.intersect(ray) == f32::INFINITY {
                 continue;
             }
@@ -618,7 +624,7 @@ impl Geometry {
         }
         let mut r = *ray;
         let mut best = None;
-        self.search_parts::<false>(&mut r, |k, object_ray| {
+        self.search_parts::<false, true>(&mut r, |k, object_ray| {
             let hit = self.parts[k as usize].intersect(self, k, object_ray);
             Self::keep_closest(hit, object_ray, &mut best)
         });
@@ -629,62 +635,104 @@ impl Geometry {
         best
     }
 
-    /// [`Geometry::intersect`] of each of `rays`, into `hits`. A scene under one tree (no
-    /// instances or copies) traces them 2 or 4 at a time through the interleaved wide
-    /// traversal, whose rays overlap each other's memory waits ([`phr_bvh::wide::interleave`]);
-    /// any other scene traces them one by one. The hits are the same either way.
+    /// [`Geometry::intersect`] of each of `rays`, into `hits`. The parts in place (the whole
+    /// scene, when it is one tree) trace the batch 2 or 4 rays at a time through the
+    /// interleaved wide traversal, whose rays overlap each other's memory waits
+    /// ([`phr_bvh::wide::interleave`]); moved parts and copies are then searched one ray at a
+    /// time. Each ray meets the parts in the same order and with the same interval as in
+    /// [`Geometry::intersect`], so the hits are the same.
     pub fn intersect_batch(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
-        let Some(part) = self.single_tree() else {
-            for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
-                *hit = self.intersect(ray);
+        if self.is_one_tree() {
+            return self.parts[0].closest_batch(self, 0, rays, hits);
+        }
+        hits.fill(None);
+        let mut work = rays.to_vec();
+        let mut batch = Vec::with_capacity(rays.len());
+        let mut found = Vec::with_capacity(rays.len());
+        for (k, bounds) in self.in_place_parts() {
+            let (part, which) = (&self.parts[k as usize], Self::reaching(&work, bounds));
+            batch.clear();
+            batch.extend(which.iter().map(|&i| work[i]));
+            found.clear();
+            found.resize(batch.len(), None);
+            part.closest_batch(self, k, &batch, &mut found);
+            for (&i, &hit) in which.iter().zip(&found) {
+                Self::keep_closest(hit, &mut work[i], &mut hits[i]);
             }
-            return;
-        };
-        if part.has_spheres {
-            let start = |i: usize| (rays[i], PartLeaves { geometry: self, part, best: None });
-            part.interleave::<false, _>(rays.len(), start, |i, _, leaves, _| hits[i] = leaves.best);
-        } else {
-            let start = |i: usize| (rays[i], ClosestTriangle::new(&part.wide, &part.packed));
-            part.interleave::<false, _>(rays.len(), start, |i, _, leaves, _| {
-                hits[i] =
-                    leaves.best.map(|h| Hit { t: h.hit.t, prim: h.prim, u: h.hit.u, v: h.hit.v, slot: h.slot, part: 0 })
+        }
+        for (ray, best) in work.iter_mut().zip(hits.iter_mut()) {
+            self.search_parts::<false, false>(ray, |k, object_ray| {
+                let hit = self.parts[k as usize].intersect(self, k, object_ray);
+                Self::keep_closest(hit, object_ray, best)
+            });
+            self.copies.search::<false>(ray, |c, object_ray| {
+                let hit = self.copies.copy(c).0.intersect(self, COPY | c, object_ray);
+                Self::keep_closest(hit, object_ray, best)
             });
         }
     }
 
-    /// [`Geometry::occluded`] of each of `rays`, into `occluded`: interleaved as
-    /// [`Geometry::intersect_batch`] on a scene under one tree, one by one otherwise.
+    /// [`Geometry::occluded`] of each of `rays`, into `occluded`: the parts in place as
+    /// batches, interleaved as in [`Geometry::intersect_batch`], then moved parts and copies
+    /// one ray at a time for the rays not yet occluded.
     pub fn occluded_batch(&self, rays: &[Ray], occluded: &mut [bool]) {
         assert_eq!(rays.len(), occluded.len(), "one answer per ray");
-        let Some(part) = self.single_tree() else {
-            for (ray, answer) in rays.iter().zip(occluded.iter_mut()) {
-                *answer = self.occluded(ray);
+        if self.is_one_tree() {
+            return self.parts[0].occluded_batch(self, rays, occluded);
+        }
+        occluded.fill(false);
+        let mut batch = Vec::with_capacity(rays.len());
+        let mut answers = Vec::with_capacity(rays.len());
+        for (k, bounds) in self.in_place_parts() {
+            let which: Vec<usize> = Self::reaching(rays, bounds).into_iter().filter(|&i| !occluded[i]).collect();
+            batch.clear();
+            batch.extend(which.iter().map(|&i| rays[i]));
+            answers.clear();
+            answers.resize(batch.len(), false);
+            self.parts[k as usize].occluded_batch(self, &batch, &mut answers);
+            for (&i, &blocked) in which.iter().zip(&answers) {
+                occluded[i] |= blocked;
             }
-            return;
-        };
-        if part.has_spheres {
-            let start = |i: usize| (rays[i], PartLeaves { geometry: self, part, best: None });
-            part.interleave::<true, _>(rays.len(), start, |i, _, _, hit| occluded[i] = hit);
-        } else {
-            let start = |i: usize| (rays[i], AnyTriangle(&part.packed));
-            part.interleave::<true, _>(rays.len(), start, |i, _, _, hit| occluded[i] = hit);
+        }
+        for (ray, answer) in rays.iter().zip(occluded.iter_mut()).filter(|(_, a)| !**a) {
+            *answer = self.search_parts::<true, false>(&mut ray.clone(), |k, object_ray| {
+                self.parts[k as usize].occluded(self, object_ray)
+            }) || self
+                .copies
+                .search::<true>(&mut ray.clone(), |c, object_ray| self.copies.copy(c).0.occluded(self, object_ray));
         }
     }
 
-    /// The one part of a scene under one tree (no instances or copies), whose rays the batch
-    /// queries interleave.
-    fn single_tree(&self) -> Option<&Part> {
-        (self.placement.is_none() && self.copies.is_empty()).then(|| &self.parts[0])
+    /// Whether the scene is one tree: no parts moved by instances, no copies (the batch
+    /// queries then go to that tree directly).
+    fn is_one_tree(&self) -> bool {
+        self.placement.is_none() && self.copies.is_empty()
+    }
+
+    /// The parts searched with the world ray as it is, first, with their boxes (`None`: the
+    /// whole scene is one part, without a box test).
+    fn in_place_parts(&self) -> Vec<(u32, Option<Aabb>)> {
+        match &self.placement {
+            None => vec![(0, None)],
+            Some(placement) => placement.in_place.iter().map(|&(k, bounds)| (k, Some(bounds))).collect(),
+        }
+    }
+
+    /// The indices of `rays` that reach `bounds` within their interval (all, for `None`), as
+    /// [`Geometry::search_parts`] tests the parts in place.
+    fn reaching(rays: &[Ray], bounds: Option<Aabb>) -> Vec<usize> {
+        (0..rays.len()).filter(|&i| bounds.is_none_or(|b| b.intersect(&rays[i]) != f32::INFINITY)).collect()
     }
 
     /// Whether anything lies along `ray` within its interval (shadow rays): stops at the
     /// first hit.
     pub fn occluded(&self, ray: &Ray) -> bool {
-        self.search_parts::<true>(&mut ray.clone(), |k, object_ray| self.parts[k as usize].occluded(self, object_ray))
-            || self
-                .copies
-                .search::<true>(&mut ray.clone(), |c, object_ray| self.copies.copy(c).0.occluded(self, object_ray))
+        self.search_parts::<true, true>(&mut ray.clone(), |k, object_ray| {
+            self.parts[k as usize].occluded(self, object_ray)
+        }) || self
+            .copies
+            .search::<true>(&mut ray.clone(), |c, object_ray| self.copies.copy(c).0.occluded(self, object_ray))
     }
 
     /// [`Geometry::intersect`] through the builders' trees (the binary reference traversal),
@@ -694,7 +742,7 @@ impl Geometry {
     pub fn intersect_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> Option<Hit> {
         let mut r = *ray;
         let mut best = None;
-        self.search_parts::<false>(&mut r, |k, object_ray| {
+        self.search_parts::<false, true>(&mut r, |k, object_ray| {
             let part = &self.parts[k as usize];
             if part.bvh.nodes.is_empty() && !part.wide.nodes.is_empty() {
                 let mut wide = WideStats::default();
@@ -845,6 +893,33 @@ impl Part {
         (0..WIDTH)
             .filter(|&i| root.is_used(i))
             .fold(Aabb::EMPTY, |b, i| b.union(instance.world_box(root.child_bounds(i))))
+    }
+
+    /// [`Part::intersect`] of each of `rays` (this is part `k`), into `hits`, interleaved.
+    fn closest_batch(&self, g: &Geometry, k: u32, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        if self.has_spheres {
+            let start = |i: usize| (rays[i], PartLeaves { geometry: g, part: self, best: None });
+            self.interleave::<false, _>(rays.len(), start, |i, _, leaves, _| {
+                hits[i] = leaves.best.map(|h| Hit { part: k, ..h })
+            });
+        } else {
+            let start = |i: usize| (rays[i], ClosestTriangle::new(&self.wide, &self.packed));
+            self.interleave::<false, _>(rays.len(), start, |i, _, leaves, _| {
+                hits[i] =
+                    leaves.best.map(|h| Hit { t: h.hit.t, prim: h.prim, u: h.hit.u, v: h.hit.v, slot: h.slot, part: k })
+            });
+        }
+    }
+
+    /// [`Part::occluded`] of each of `rays`, into `occluded`, interleaved.
+    fn occluded_batch(&self, g: &Geometry, rays: &[Ray], occluded: &mut [bool]) {
+        if self.has_spheres {
+            let start = |i: usize| (rays[i], PartLeaves { geometry: g, part: self, best: None });
+            self.interleave::<true, _>(rays.len(), start, |i, _, _, hit| occluded[i] = hit);
+        } else {
+            let start = |i: usize| (rays[i], AnyTriangle(&self.packed));
+            self.interleave::<true, _>(rays.len(), start, |i, _, _, hit| occluded[i] = hit);
+        }
     }
 
     /// Closest-hit (`ANY`: any-hit) queries of `count` rays through this part's wide tree,
