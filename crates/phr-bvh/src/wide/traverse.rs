@@ -1,6 +1,9 @@
-//! The ordered single-ray traversal of a [`WideBvh`], generic over the node kernel.
+//! The ordered traversal of a [`WideBvh`], generic over the node kernel: one ray at a time
+//! ([`run`]), or several interleaved ([`run_interleaved`]: each round visits one node or
+//! leaf of every ray in flight, so that one ray's dependent node loads overlap the others'
+//! work). Both repeat the same visit, `Walk::step`.
 //!
-//! One loop for closest and any hit: test all children of the current node at once, and
+//! One visit for closest and any hit: test all children of the current node at once, and
 //! - no child hit: pop;
 //! - one child hit: go there (no stack traffic, the common case deep in the tree);
 //! - two (closest hit): push the farther, go to the nearer;
