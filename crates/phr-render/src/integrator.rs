@@ -158,6 +158,9 @@ impl PathTracer<'_> {
     #[inline(always)]
     fn trace_path<const GUIDE: bool>(&self, ray: Ray, rng: &mut Pcg32, first: &mut FirstHit) -> PathSample {
         let mut path = Path::new(ray);
+        if !self.traces_anything() {
+            return path.sample();
+        }
         loop {
             let hit = self.geometry.intersect(&path.ray);
             let going = self.advance::<GUIDE>(&mut path, hit, rng, first);
@@ -169,6 +172,13 @@ impl PathTracer<'_> {
             }
         }
         path.sample()
+    }
+
+    /// Whether paths have any segment to trace (`max_depth > 0`): a path of none is black and
+    /// traces no ray, and its first segment must not be traced.
+    #[inline(always)]
+    pub fn traces_anything(&self) -> bool {
+        self.max_depth > 0
     }
 
     /// One segment of `path`: `hit` is the closest hit of `path.ray` (the caller traced it).

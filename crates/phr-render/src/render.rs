@@ -158,7 +158,7 @@ impl Renderer<'_> {
             }
         }
         let geometry = self.tracer.geometry;
-        let mut live: Vec<usize> = (0..paths.len()).collect();
+        let mut live: Vec<usize> = if self.tracer.traces_anything() { (0..paths.len()).collect() } else { Vec::new() };
         let mut rays = Vec::with_capacity(paths.len());
         let mut hits = Vec::with_capacity(paths.len());
         // The paths whose light sample waits for its shadow ray, and their answers.
@@ -183,7 +183,7 @@ impl Renderer<'_> {
             });
             if !waiting.is_empty() {
                 rays.clear();
-                rays.extend(waiting.iter().filter_map(|&i| paths[i].0.shadow_ray()));
+                rays.extend(waiting.iter().map(|&i| paths[i].0.shadow_ray().expect("a waiting path has a shadow ray")));
                 occluded.clear();
                 occluded.resize(rays.len(), false);
                 geometry.occluded_batch(&rays, &mut occluded);
@@ -204,7 +204,8 @@ impl Renderer<'_> {
         (pixels, traced)
     }
 
-    /// The tile loop of [`Renderer::render_frame`] with another per-pixel estimator:
+    /// The one-path-at-a-time tile loop (that of [`Renderer::render_frame`] with
+    /// [`Tracing::Single`]) with any per-pixel estimator:
     /// `shade(camera_ray, rng)` returns what the pixel holds (a colour) and the number of
     /// rays it traced. The viewer's normal, albedo and heatmap modes use it.
     pub fn render_frame_with<T: Copy + Default + Send>(

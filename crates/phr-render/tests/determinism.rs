@@ -104,9 +104,10 @@ fn explicit_light_sampling_is_deterministic_too() {
 }
 
 /// The wavefront (a tile's rays intersected as a batch) and the single-ray loop give the same
-/// image, bit for bit, and trace the same rays: on a scene of triangles alone, whose batches
-/// go through the interleaved traversal, and on the built-in scene, whose spheres send them
-/// one by one; with each estimator; and the guided frames' first hits agree too.
+/// image, bit for bit, and trace the same rays: on a scene of triangles alone (the packed
+/// triangle test) and on the built-in scene (spheres among the triangles, the part's own leaf
+/// test), both through the interleaved traversal; with each estimator; and the guided frames'
+/// first hits agree too.
 #[test]
 fn wavefront_and_single_ray_tracing_give_the_same_image() {
     use phr_render::render::Tracing;
@@ -218,4 +219,22 @@ fn batch_queries_equal_single_ray_queries_on_parts_and_copies() {
 /// Where the built-in scene's default view looks.
 fn cornell_view_target() -> Vec3 {
     builtin::cornell_knot().view(None).expect("default view").look_at
+}
+
+/// A renderer made with paths of no segment (the library does not forbid it; the command
+/// line refuses it) traces no ray and renders black, in both tracings.
+#[test]
+fn paths_of_no_segment_trace_nothing() {
+    use phr_render::render::Tracing;
+    let scene = builtin::cornell_knot();
+    let mut geometry = Geometry::new(&scene);
+    geometry.build(&Builder::default());
+    let view = scene.view(None).expect("default view");
+    let settings = RenderSettings { width: 16, height: 16, spp: 1, max_depth: 0 };
+    for tracing in [Tracing::Single, Tracing::Wavefront] {
+        let (pixels, stats) =
+            Renderer::new(&scene, &geometry, &view, &settings, None).with_tracing(tracing).render_frame(0);
+        assert_eq!(stats.rays, 0, "{tracing}");
+        assert!(pixels.iter().all(|p| *p == Vec3::ZERO), "{tracing}");
+    }
 }

@@ -452,13 +452,18 @@ unsafe fn run_interleaved<const N: usize, const M: usize, const ANY: bool, K: Ke
     // slot's branches then have their own addresses in the branch predictor, instead of one
     // set of branches seeing the rays' outcomes mixed.
     const { assert!(M >= 1 && M <= 4, "1 to 4 rays at once") };
+    // A room is borrowed again only to refill its slot, once the walk that pointed into it
+    // has ended: a new `&mut` to a room while its walk's stack pointers are live would
+    // invalidate them.
     macro_rules! turn {
         ($k:expr) => {
-            if $k < M {
-                // SAFETY: as this function's.
-                busy -= unsafe {
-                    turn::<N, K, ANY, V>(bvh, count, &mut next, &mut start, &mut finish, &mut slots[$k], &mut rooms[$k])
-                } as usize;
+            // SAFETY: as this function's.
+            if $k < M && unsafe { turn::<N, K, ANY, V>(bvh, &mut slots[$k]) } {
+                let Slot { index, ray, visitor, walk } = slots[$k].take().expect("busy slot");
+                finish(index, ray, visitor, walk.hit);
+                if !refill(bvh, count, &mut next, &mut start, &mut finish, &mut slots[$k], &mut rooms[$k]) {
+                    busy -= 1;
+                }
             }
         };
     }
@@ -471,20 +476,15 @@ unsafe fn run_interleaved<const N: usize, const M: usize, const ANY: bool, K: Ke
 }
 
 /// One slot's turn in [`run_interleaved`]: a step of its walk, then a prefetch of what it
-/// visits next, or, if the walk ended, its ray finished and the next one started. Returns
-/// whether the slot fell idle (no ray left).
+/// visits next. Returns whether the walk ended (the caller then finishes its ray and starts
+/// the next); an idle slot does nothing.
 ///
 /// # Safety
 /// As [`run_interleaved`].
 #[inline(always)]
 unsafe fn turn<const N: usize, K: Kernel<N>, const ANY: bool, V: LeafVisitor>(
     bvh: &WideBvh<N>,
-    count: usize,
-    next: &mut usize,
-    start: &mut impl FnMut(usize) -> (Ray, V),
-    finish: &mut impl FnMut(usize, Ray, V, bool),
     slot: &mut Option<Slot<N, V>>,
-    room: &mut StackRoom,
 ) -> bool {
     let Some(s) = slot else { return false };
     let mut stats = WideStats::default();
@@ -500,11 +500,8 @@ unsafe fn turn<const N: usize, K: Kernel<N>, const ANY: bool, V: LeafVisitor>(
         } else {
             s.visitor.prefetch(cur.child);
         }
-        return false;
     }
-    let Slot { index, ray, visitor, walk } = slot.take().expect("busy slot");
-    finish(index, ray, visitor, walk.hit);
-    !refill(bvh, count, next, start, finish, slot, room)
+    !going
 }
 
 /// Fills `slot` with the next ray (from `*next` on) that needs a walk, finishing the others

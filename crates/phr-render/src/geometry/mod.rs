@@ -619,7 +619,7 @@ impl Geometry {
     /// The closest hit along `ray` within its interval.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        if self.placement.is_none() && self.copies.is_empty() {
+        if self.is_one_tree() {
             return self.parts[0].intersect(self, 0, ray);
         }
         let mut r = *ray;
@@ -932,7 +932,7 @@ impl Part {
         start: impl FnMut(usize) -> (Ray, V),
         finish: impl FnMut(usize, Ray, V, bool),
     ) {
-        let fits = interleave::fits_cache(self.traced_bytes());
+        let fits = interleave::fits_cache(self.wide.traced_bytes(&self.packed));
         let wide = &self.wide;
         match (ANY, fits) {
             (false, true) => wide.closest_hit_interleaved::<{ interleave::FROM_CACHE }, _>(count, start, finish),
