@@ -1,5 +1,6 @@
 //! How many rays the interleaved traversal ([`super::WideBvh::closest_hit_interleaved`])
-//! should keep in flight, from the size of what it traces.
+//! should keep in flight, from the size of what it traces; applied by
+//! [`super::WideBvh::closest_hit_batch`] and [`super::WideBvh::any_hit_batch`].
 //!
 //! Interleaving pays for memory waits: where the tree and its triangles do not fit the
 //! last-level cache, each node visit waits on memory, and the more rays share the wait the
@@ -17,15 +18,6 @@ pub const FROM_CACHE: usize = 2;
 /// Whether `bytes` (nodes and primitive data) fit this CPU's last-level cache.
 pub fn fits_cache(bytes: usize) -> bool {
     bytes <= last_level_cache()
-}
-
-/// [`FROM_CACHE`] or [`FROM_MEMORY`] for a tree and its primitive data of `bytes`.
-pub fn rays_in_flight(bytes: usize) -> usize {
-    if fits_cache(bytes) {
-        FROM_CACHE
-    } else {
-        FROM_MEMORY
-    }
 }
 
 /// The size of this CPU's last-level cache in bytes (Linux's sysfs; 32 MiB where it cannot
@@ -71,9 +63,9 @@ mod tests {
     }
 
     #[test]
-    fn small_trees_take_fewer_rays_than_large_ones() {
+    fn small_trees_fit_the_cache_and_large_ones_do_not() {
         assert!(last_level_cache() > 0);
-        assert_eq!(rays_in_flight(1 << 10), FROM_CACHE);
-        assert_eq!(rays_in_flight(usize::MAX), FROM_MEMORY);
+        assert!(fits_cache(1 << 10));
+        assert!(!fits_cache(usize::MAX));
     }
 }

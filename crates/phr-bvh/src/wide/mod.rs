@@ -402,6 +402,53 @@ where
         <Lanes<N> as traverse::sealed::Sealed<N>>::run_interleaved::<M, true, V>(self, count, start, finish)
     }
 
+    /// [`WideBvh::closest_hit_interleaved`] with as many rays in flight as the traced data
+    /// calls for: `traced_bytes` (this tree's nodes and its primitive data, e.g.
+    /// [`WideBvh::traced_bytes`]) against the last-level cache ([`interleave`]).
+    #[inline]
+    pub fn closest_hit_batch<V: LeafVisitor>(
+        &self,
+        traced_bytes: usize,
+        count: usize,
+        start: impl FnMut(usize) -> (Ray, V),
+        finish: impl FnMut(usize, Ray, V, bool),
+    ) {
+        self.batch::<false, V>(traced_bytes, count, start, finish)
+    }
+
+    /// [`WideBvh::any_hit_interleaved`] with as many rays in flight as
+    /// [`WideBvh::closest_hit_batch`] takes.
+    #[inline]
+    pub fn any_hit_batch<V: LeafVisitor>(
+        &self,
+        traced_bytes: usize,
+        count: usize,
+        start: impl FnMut(usize) -> (Ray, V),
+        finish: impl FnMut(usize, Ray, V, bool),
+    ) {
+        self.batch::<true, V>(traced_bytes, count, start, finish)
+    }
+
+    /// The one place the rays-in-flight rule of [`interleave`] is applied.
+    #[inline(always)]
+    fn batch<const ANY: bool, V: LeafVisitor>(
+        &self,
+        traced_bytes: usize,
+        count: usize,
+        start: impl FnMut(usize) -> (Ray, V),
+        finish: impl FnMut(usize, Ray, V, bool),
+    ) {
+        if interleave::fits_cache(traced_bytes) {
+            <Lanes<N> as traverse::sealed::Sealed<N>>::run_interleaved::<{ interleave::FROM_CACHE }, ANY, V>(
+                self, count, start, finish,
+            )
+        } else {
+            <Lanes<N> as traverse::sealed::Sealed<N>>::run_interleaved::<{ interleave::FROM_MEMORY }, ANY, V>(
+                self, count, start, finish,
+            )
+        }
+    }
+
     /// Any hit with a [`LeafVisitor`]: stops at the first leaf whose visit returns true.
     #[inline]
     pub fn any_hit_visit(&self, ray: &Ray, leaves: &mut impl LeafVisitor) -> bool {

@@ -1,7 +1,7 @@
 //! Triangles laid out for intersection: in the leaf order of a [`super::WideBvh`], with the
 //! edges precomputed, in blocks of 4 (structure of arrays) tested 4 at a time.
 
-use super::{interleave, Lanes, LeafVisitor, SimdLevel, WideBvh, Width};
+use super::{Lanes, LeafVisitor, SimdLevel, WideBvh, Width};
 use crate::ray::Ray;
 use crate::triangle::{intersect_triangle_edges, TriangleHit, EDGE_TOLERANCE, MAX_EDGE_SLACK};
 use glam::Vec3;
@@ -410,24 +410,28 @@ where
     }
 
     /// [`WideBvh::closest_triangle_slot`] of each of `rays`, into `hits`, interleaved with as
-    /// many rays in flight as the size of the tree and the triangles calls for
-    /// ([`interleave::rays_in_flight`]).
+    /// many rays in flight as the tree and the triangles call for
+    /// ([`WideBvh::closest_hit_batch`]).
     pub fn closest_triangles_batch(&self, tris: &PackedTriangles, rays: &[Ray], hits: &mut [Option<SlotHit>]) {
-        if interleave::fits_cache(self.traced_bytes(tris)) {
-            self.closest_triangles_interleaved::<{ interleave::FROM_CACHE }>(tris, rays, hits);
-        } else {
-            self.closest_triangles_interleaved::<{ interleave::FROM_MEMORY }>(tris, rays, hits);
-        }
+        assert_eq!(rays.len(), hits.len(), "one hit per ray");
+        self.closest_hit_batch(
+            self.traced_bytes(tris),
+            rays.len(),
+            |i| (rays[i], ClosestTriangle::new(self, tris)),
+            |i, _, visitor, _| hits[i] = visitor.best,
+        );
     }
 
     /// [`WideBvh::any_triangle`] of each of `rays`, into `occluded`, interleaved as
     /// [`WideBvh::closest_triangles_batch`].
     pub fn any_triangles_batch(&self, tris: &PackedTriangles, rays: &[Ray], occluded: &mut [bool]) {
-        if interleave::fits_cache(self.traced_bytes(tris)) {
-            self.any_triangles_interleaved::<{ interleave::FROM_CACHE }>(tris, rays, occluded);
-        } else {
-            self.any_triangles_interleaved::<{ interleave::FROM_MEMORY }>(tris, rays, occluded);
-        }
+        assert_eq!(rays.len(), occluded.len(), "one answer per ray");
+        self.any_hit_batch(
+            self.traced_bytes(tris),
+            rays.len(),
+            |i| (rays[i], AnyTriangle(tris)),
+            |i, _, _, hit| occluded[i] = hit,
+        );
     }
 
     /// Bytes a traversal reads from: the nodes and the packed triangles.

@@ -39,7 +39,7 @@ use phr_bvh::instance::{Instance, TopLevel};
 use phr_bvh::sphere::Sphere;
 use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
 use phr_bvh::wide::triangles::{AnyTriangle, ClosestTriangle};
-use phr_bvh::wide::{interleave, LeafVisitor};
+use phr_bvh::wide::LeafVisitor;
 use phr_bvh::wide::{WideStats, PAD};
 use phr_bvh::{closest_hit_counted, Aabb, Builder, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
 use std::borrow::Cow;
@@ -638,7 +638,7 @@ impl Geometry {
     /// [`Geometry::intersect`] of each of `rays`, into `hits`. The parts in place (the whole
     /// scene, when it is one tree) trace the batch 2 or 4 rays at a time through the
     /// interleaved wide traversal, whose rays overlap each other's memory waits
-    /// ([`phr_bvh::wide::interleave`]); moved parts and copies are then searched one ray at a
+    /// ([`WideBvh::closest_hit_batch`]); moved parts and copies are then searched one ray at a
     /// time. Each ray meets the parts in the same order and with the same interval as in
     /// [`Geometry::intersect`], so the hits are the same.
     pub fn intersect_batch(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
@@ -895,50 +895,34 @@ impl Part {
             .fold(Aabb::EMPTY, |b, i| b.union(instance.world_box(root.child_bounds(i))))
     }
 
-    /// [`Part::intersect`] of each of `rays` (this is part `k`), into `hits`, interleaved.
+    /// [`Part::intersect`] of each of `rays` (this is part `k`), into `hits`, interleaved
+    /// ([`WideBvh::closest_hit_batch`]).
     fn closest_batch(&self, g: &Geometry, k: u32, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        let bytes = self.wide.traced_bytes(&self.packed);
         if self.has_spheres {
             let start = |i: usize| (rays[i], PartLeaves { geometry: g, part: self, best: None });
-            self.interleave::<false, _>(rays.len(), start, |i, _, leaves, _| {
+            self.wide.closest_hit_batch(bytes, rays.len(), start, |i, _, leaves, _| {
                 hits[i] = leaves.best.map(|h| Hit { part: k, ..h })
             });
         } else {
             let start = |i: usize| (rays[i], ClosestTriangle::new(&self.wide, &self.packed));
-            self.interleave::<false, _>(rays.len(), start, |i, _, leaves, _| {
+            self.wide.closest_hit_batch(bytes, rays.len(), start, |i, _, leaves, _| {
                 hits[i] =
                     leaves.best.map(|h| Hit { t: h.hit.t, prim: h.prim, u: h.hit.u, v: h.hit.v, slot: h.slot, part: k })
             });
         }
     }
 
-    /// [`Part::occluded`] of each of `rays`, into `occluded`, interleaved.
+    /// [`Part::occluded`] of each of `rays`, into `occluded`, interleaved
+    /// ([`WideBvh::any_hit_batch`]).
     fn occluded_batch(&self, g: &Geometry, rays: &[Ray], occluded: &mut [bool]) {
+        let bytes = self.wide.traced_bytes(&self.packed);
         if self.has_spheres {
             let start = |i: usize| (rays[i], PartLeaves { geometry: g, part: self, best: None });
-            self.interleave::<true, _>(rays.len(), start, |i, _, _, hit| occluded[i] = hit);
+            self.wide.any_hit_batch(bytes, rays.len(), start, |i, _, _, hit| occluded[i] = hit);
         } else {
             let start = |i: usize| (rays[i], AnyTriangle(&self.packed));
-            self.interleave::<true, _>(rays.len(), start, |i, _, _, hit| occluded[i] = hit);
-        }
-    }
-
-    /// Closest-hit (`ANY`: any-hit) queries of `count` rays through this part's wide tree,
-    /// interleaved, as many rays at once as its size calls for
-    /// ([`phr_bvh::wide::interleave`]).
-    #[inline(always)]
-    fn interleave<const ANY: bool, V: LeafVisitor>(
-        &self,
-        count: usize,
-        start: impl FnMut(usize) -> (Ray, V),
-        finish: impl FnMut(usize, Ray, V, bool),
-    ) {
-        let fits = interleave::fits_cache(self.wide.traced_bytes(&self.packed));
-        let wide = &self.wide;
-        match (ANY, fits) {
-            (false, true) => wide.closest_hit_interleaved::<{ interleave::FROM_CACHE }, _>(count, start, finish),
-            (false, false) => wide.closest_hit_interleaved::<{ interleave::FROM_MEMORY }, _>(count, start, finish),
-            (true, true) => wide.any_hit_interleaved::<{ interleave::FROM_CACHE }, _>(count, start, finish),
-            (true, false) => wide.any_hit_interleaved::<{ interleave::FROM_MEMORY }, _>(count, start, finish),
+            self.wide.any_hit_batch(bytes, rays.len(), start, |i, _, _, hit| occluded[i] = hit);
         }
     }
 
