@@ -99,7 +99,7 @@ pub fn measure_builder(
     });
     BuildRow {
         mesh: mesh.into(),
-        triangles: geometry.triangles.len(),
+        triangles: geometry.triangle_count(),
         threads,
         builder: builder.to_string(),
         aux_ms,

@@ -27,7 +27,6 @@ use crate::sampler::Pcg32;
 use crate::scene::Background;
 use glam::Vec3;
 use phr_bvh::sphere::Sphere;
-use phr_bvh::triangle::triangle_normal;
 use std::f32::consts::{FRAC_1_PI, TAU};
 
 /// The sky's share of the light samples when the scene has other emitters as well.
@@ -91,7 +90,7 @@ fn cone(sphere: &Sphere, from: Vec3) -> Option<f32> {
 impl LightSet {
     /// The emitters of `geometry` with `materials`, and `background` if it is not black.
     pub fn new(geometry: &Geometry, materials: &[Material], background: &Background) -> Self {
-        let n_tris = geometry.triangles.len();
+        let n_tris = geometry.triangle_count();
         let emits = |m: u32| materials[m as usize].emitted(true).max_element() > 0.0;
         let triangles = (0..n_tris).filter(|&i| emits(geometry.triangle_material[i]));
         let spheres = (0..geometry.spheres.len()).filter(|&i| emits(geometry.spheres[i].material));
@@ -107,13 +106,13 @@ impl LightSet {
     pub fn refresh(&mut self, geometry: &Geometry, materials: &[Material]) {
         self.cdf.clear();
         self.emitters.clear();
-        let n_tris = geometry.triangles.len();
+        let n_tris = geometry.triangle_count();
         let mut total = 0.0f32;
         for &p in &self.prims {
             let p = p as usize;
             let (area, material) = if p < n_tris {
-                let [a, b, c] = geometry.world_triangle(p);
-                (0.5 * triangle_normal(a, b, c).length(), geometry.triangle_material[p])
+                let [_, e1, e2] = geometry.world_triangle_edges(p);
+                (0.5 * e1.cross(e2).length(), geometry.triangle_material[p])
             } else {
                 let r = geometry.world_sphere(p - n_tris).radius;
                 (2.0 * TAU * r * r, geometry.spheres[p - n_tris].material)
@@ -184,16 +183,17 @@ impl LightSet {
         }
         let prim = self.prims[k];
         let emitter = &self.emitters[k];
-        let n_tris = geometry.triangles.len();
+        let n_tris = geometry.triangle_count();
         let (u1, u2) = (rng.next_f32(), rng.next_f32());
         let sample = if (prim as usize) < n_tris {
-            let [a, b, c] = geometry.world_triangle(prim as usize);
+            let [v0, e1, e2] = geometry.world_triangle_edges(prim as usize);
+            // Shirley's warp, `(1 - s) v0 + s (1 - u2) v1 + s u2 v2` written with the edges.
             let s = u1.sqrt();
-            let point = a * (1.0 - s) + b * (s * (1.0 - u2)) + c * (s * u2);
+            let point = v0 + e1 * (s * (1.0 - u2)) + e2 * (s * u2);
             let to_light = point - position;
             let dist2 = to_light.length_squared();
             let dir = to_light / dist2.sqrt();
-            let cos_light = -triangle_normal(a, b, c).normalize().dot(dir);
+            let cos_light = -e1.cross(e2).normalize().dot(dir);
             let pdf = selection / emitter.area * dist2 / cos_light.abs();
             LightSample { dir, point: Some(point), radiance: emitter.material.emitted(cos_light > 0.0), pdf, prim }
         } else {
@@ -265,7 +265,7 @@ impl LightSet {
     pub fn pdf_hit(&self, geometry: &Geometry, prim: u32, from: Vec3, point: Vec3, normal: Vec3) -> f32 {
         let Some(k) = self.emitter(prim) else { return 0.0 };
         let selection = self.selection(k);
-        let n_tris = geometry.triangles.len();
+        let n_tris = geometry.triangle_count();
         if (prim as usize) < n_tris {
             let to_light = point - from;
             let dist2 = to_light.length_squared();

@@ -553,7 +553,7 @@ impl FramePipeline {
 
     /// Cuts the scene into the two-level layout's parts and builds their trees.
     fn split(&mut self) -> Parts {
-        let objects = self.animator.objects(self.geometry.triangles.len());
+        let objects = self.animator.objects(self.geometry.triangle_count());
         let mut moving = vec![false; self.geometry.prim_count()];
         for object in &objects {
             for &p in &object.prims {

@@ -238,3 +238,94 @@ fn paths_of_no_segment_trace_nothing() {
         assert!(pixels.iter().all(|p| *p == Vec3::ZERO), "{tracing}");
     }
 }
+
+/// Renders `geometry` as `phr render` does, with explicit light sampling if `nee`: 2 frames of
+/// 32², film mean.
+fn render_geometry(scene: &Scene, geometry: &Geometry, nee: bool) -> Vec<Vec3> {
+    let lights = nee.then(|| LightSet::new(geometry, &scene.materials, &scene.background));
+    let view = scene.view(None).expect("default view");
+    let settings = RenderSettings { width: 32, height: 32, spp: 2, max_depth: MAX_DEPTH };
+    let renderer = Renderer::new(scene, geometry, &view, &settings, lights.as_ref()).with_seed(3);
+    let mut film = Film::new(32, 32);
+    for frame in 0..2 {
+        film.add_frame(&renderer.render_frame(frame).0);
+    }
+    film.mean()
+}
+
+/// Releasing the scene-order triangles (`phr render` does, so that the packed blocks are the
+/// only copy) changes nothing: the same triangles, bit for bit, through
+/// `Geometry::triangle_edges`, the same hits on the counting traversal (which reads the
+/// triangles by primitive index), the same lights and the same images, implicit and with
+/// light sampling; on one tree (with the SBVH too, which puts a triangle in several leaves)
+/// and on parts, one of them moved, which can still be placed after the release.
+#[test]
+fn released_triangles_render_the_same_image() {
+    use glam::Affine3A;
+    use phr_bvh::sbvh::SbvhOptions;
+    use phr_bvh::{Ray, TraversalStats};
+    let scene = builtin::cornell_knot();
+    let moved = Affine3A::from_rotation_y(0.2) * Affine3A::from_translation(Vec3::new(0.05, 0.0, -0.1));
+    let make = |case: &str| {
+        let mut g = Geometry::new(&scene);
+        match case {
+            "sbvh" => g.build(&Builder::Sbvh(SbvhOptions::default())),
+            "parts" => {
+                let n = g.prim_count() as u32;
+                let groups: Vec<Vec<u32>> = (0..3).map(|k| (0..n).filter(|p| p % 3 == k).collect()).collect();
+                g.split(groups, &Builder::default());
+                g.place(&[(2, moved)]);
+            }
+            _ => g.build(&Builder::default()),
+        }
+        g
+    };
+    for case in ["one tree", "sbvh", "parts"] {
+        let kept = make(case);
+        let mut released = make(case);
+        assert!(released.release_triangles(), "{case}: every triangle is in a tree");
+        assert!(released.triangles.is_empty(), "{case}");
+        let n = kept.triangle_count();
+        assert_eq!(released.triangle_count(), n, "{case}");
+        let saved = kept.memory().triangles - released.memory().triangles;
+        assert_eq!(saved, n * 32, "{case}: 36 bytes of vertices less 4 of slot, per triangle");
+        for p in 0..n {
+            let [a, b, c] = kept.world_triangle(p);
+            let [v0, e1, e2] = kept.triangle_edges(p);
+            assert_eq!(released.triangle_edges(p), [v0, e1, e2], "{case}: triangle {p}");
+            assert_eq!(released.world_triangle_edges(p), kept.world_triangle_edges(p), "{case}: triangle {p}");
+            if case != "parts" {
+                assert_eq!([v0, e1, e2], [a, b - a, c - a], "{case}: triangle {p}");
+            }
+        }
+        let view = scene.view(None).expect("default view");
+        let settings = RenderSettings { width: 24, height: 24, spp: 1, max_depth: MAX_DEPTH };
+        let camera = Renderer::new(&scene, &kept, &view, &settings, None).camera;
+        for i in 0..24 * 24 {
+            let ray: Ray = camera.ray((i % 24) as f32 + 0.5, (i / 24) as f32 + 0.5);
+            let (mut s1, mut s2) = (TraversalStats::default(), TraversalStats::default());
+            assert_eq!(released.intersect_counted(&ray, &mut s1), kept.intersect_counted(&ray, &mut s2), "{case}");
+        }
+        for nee in [false, true] {
+            let a = render_geometry(&scene, &kept, nee);
+            assert!(a.iter().any(|p| p.max_element() > 0.0), "{case}: a black image");
+            assert_eq!(bits(&render_geometry(&scene, &released, nee)), bits(&a), "{case}, light sampling {nee}");
+        }
+        if case == "parts" {
+            let (mut kept, mut released) = (kept, released);
+            kept.place(&[(2, Affine3A::IDENTITY)]);
+            released.place(&[(2, Affine3A::IDENTITY)]);
+            assert_eq!(bits(&render_geometry(&scene, &released, true)), bits(&render_geometry(&scene, &kept, true)));
+        }
+    }
+}
+
+/// What would build or pack triangles refuses a released geometry, loudly.
+#[test]
+#[should_panic(expected = "the triangles were released")]
+fn a_released_geometry_is_not_rebuilt() {
+    let mut geometry = Geometry::new(&builtin::cornell_knot());
+    geometry.build(&Builder::default());
+    assert!(geometry.release_triangles());
+    geometry.build(&Builder::default());
+}

@@ -108,7 +108,7 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
     progress.finish_and_clear();
     let csv = args.out.join("frames.csv");
     write_csv(&csv, &rows).with_context(|| format!("writing {}", csv.display()))?;
-    print_summary(args, pipeline.geometry().triangles.len(), &rows);
+    print_summary(args, pipeline.geometry().triangle_count(), &rows);
     println!("wrote {}", csv.display());
     Ok(())
 }

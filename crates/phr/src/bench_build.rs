@@ -74,7 +74,7 @@ pub fn run(args: &BenchBuildArgs) -> Result<()> {
         if !args.no_embree && skipped.is_none() {
             progress.set_message(format!("{name}, native Embree"));
             match measure_embree_build(name, &geometry.triangles, &args.threads, args.repeats) {
-                Ok(embree) => rows.extend(embree_cells(name, geometry.triangles.len(), &embree)),
+                Ok(embree) => rows.extend(embree_cells(name, geometry.triangle_count(), &embree)),
                 Err(reason) => skipped = Some(reason),
             }
         }

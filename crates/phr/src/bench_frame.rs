@@ -75,7 +75,7 @@ pub fn run(args: &BenchFrameArgs) -> Result<()> {
             };
             rows.push(FrameRow {
                 scene: name.clone(),
-                triangles: geometry.triangles.len(),
+                triangles: geometry.triangle_count(),
                 res,
                 builder: args.builder.to_string(),
                 ours,

@@ -31,10 +31,12 @@ pub fn run(args: &InfoArgs) -> Result<()> {
     let mut build = crate::render::describe_build(&builder, &report);
     geometry.set_bvh(report.bvh);
     build += &crate::render::describe_copies(&scene, geometry.build_copies(&builder));
+    // As `phr render` does: the memory below is what a still render holds.
+    geometry.release_triangles();
     let b = scene.bounds();
     println!("scene       {}", args.scene);
     println!("load        {load_ms:.1} ms");
-    println!("triangles   {}", geometry.triangles.len());
+    println!("triangles   {}", geometry.triangle_count());
     if !scene.instanced.is_empty() {
         let (placed, stored) = scene.instanced_triangle_count();
         println!(
@@ -70,7 +72,8 @@ pub fn run(args: &InfoArgs) -> Result<()> {
     let mb = |bytes: usize| bytes as f64 / (1 << 20) as f64;
     println!(
         "memory      {:.1} MB: triangles {:.1}, boxes {:.1}, tree {:.1}, wide tree + packed triangles {:.1} \
-         ({:.0} B/primitive; what rendering reads, triangles + wide tree + packed triangles, {:.0} B)",
+         ({:.0} B/primitive; what rendering reads, triangles + wide tree + packed triangles, {:.0} B; \
+         the packed triangles are a still render's only copy of the vertices)",
         mb(mem.total()),
         mb(mem.triangles),
         mb(mem.boxes),

@@ -183,6 +183,8 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let mut build = describe_build(&builder, &report);
     geometry.set_bvh(report.bvh);
     build += &describe_copies(&scene, geometry.build_copies(&builder));
+    // A still render never rebuilds: the packed triangles it traces become the only copy.
+    geometry.release_triangles();
     let lights =
         (args.integrator == Integrator::Path).then(|| LightSet::new(&geometry, &scene.materials, &scene.background));
 
@@ -244,7 +246,7 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     println!(
         "{}: {} triangles, {} spheres | {build} | render {:.0} ms ({width}x{height}, {spp} spp) | {:.2} Mrays/s | SAH cost {:.2}",
         args.scene,
-        geometry.triangles.len(),
+        geometry.triangle_count(),
         geometry.spheres.len(),
         render_ms,
         rays as f64 / (render_ms / 1e3) / 1e6,

@@ -147,7 +147,7 @@ pub fn measure_scene(
     let views: Vec<_> = scene.views.iter().take(plan.max_views).map(|(_, c)| c.clone()).collect();
     let mut ctx =
         SceneCtx { scene: &scene, name: name.clone(), geometry: Geometry::new(&scene), views, repeats: plan.repeats };
-    let triangles = ctx.geometry.triangles.len();
+    let triangles = ctx.geometry.triangle_count();
     let mut evaluator = PhrEvaluator::new(&ctx.geometry.boxes, PhrOptions::FAST);
     for (i, &res) in plan.resolutions.iter().enumerate() {
         if i > 0 {

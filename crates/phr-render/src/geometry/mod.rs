@@ -1,7 +1,7 @@
 //! The renderable geometry: every triangle and sphere of a scene in one primitive array, the
 //! BVHs over it, and the closest-hit query the integrator calls.
 //!
-//! Primitives `0..triangles.len()` are triangles, the rest spheres. Closest-hit ties (two
+//! Primitives `0..triangle_count()` are triangles, the rest spheres. Closest-hit ties (two
 //! primitives at exactly the same distance, as at a shared edge) go to the lower primitive
 //! index, so the hit, and hence the image, does not depend on the tree's visit order: every
 //! builder gives the same image for the same seed.
@@ -37,7 +37,7 @@ use glam::{Affine3A, Vec2, Vec3};
 use phr_bvh::builder::BuildReport;
 use phr_bvh::instance::{Instance, TopLevel};
 use phr_bvh::sphere::Sphere;
-use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
+use phr_bvh::triangle::{intersect_triangle_edges, triangle_bounds};
 use phr_bvh::wide::triangles::{AnyTriangle, ClosestTriangle};
 use phr_bvh::wide::LeafVisitor;
 use phr_bvh::wide::{WideStats, PAD};
@@ -97,6 +97,8 @@ impl GeometryMemory {
 
 pub struct Geometry {
     /// Scene order; in the object space of the part holding them (see the module documentation).
+    /// Empty after [`Geometry::release_triangles`]: read them through
+    /// [`Geometry::triangle_edges`] and count them with [`Geometry::triangle_count`].
     pub triangles: Vec<[Vec3; 3]>,
     pub triangle_material: Vec<u32>,
     /// Texture coordinates of each triangle's corners, in scene order; empty when no mesh
@@ -113,6 +115,15 @@ pub struct Geometry {
     prim_part: Vec<u32>,
     /// The meshes placed many times, apart from the primitives above.
     copies: Copies,
+    /// After [`Geometry::release_triangles`]: where the packed blocks hold each triangle.
+    released: Option<Released>,
+}
+
+/// What replaces the scene-order triangles once they are released: their number, and for
+/// each one the entry of its part's packed triangles that holds it.
+struct Released {
+    count: usize,
+    slot: Vec<u32>,
 }
 
 /// Which parts a ray visits, and how.
@@ -231,13 +242,84 @@ impl Geometry {
             placement: None,
             prim_part: Vec::new(),
             copies: Copies::new(scene),
+            released: None,
         };
         g.update_boxes();
         g
     }
 
     pub fn prim_count(&self) -> usize {
-        self.triangles.len() + self.spheres.len()
+        self.triangle_count() + self.spheres.len()
+    }
+
+    /// Number of triangles (primitives `0..triangle_count()`; the spheres follow).
+    #[inline(always)]
+    pub fn triangle_count(&self) -> usize {
+        self.released.as_ref().map_or(self.triangles.len(), |r| r.count)
+    }
+
+    /// The scene-order triangles, for what builds, packs or moves them.
+    ///
+    /// # Panics
+    /// After [`Geometry::release_triangles`]: a released geometry is only traced.
+    fn scene_triangles(&self) -> &[[Vec3; 3]] {
+        assert!(self.released.is_none(), "the triangles were released: this geometry can only be traced");
+        &self.triangles
+    }
+
+    /// Drops the scene-order triangles of a geometry that will only be traced from now on:
+    /// the parts' packed triangles, which hold the same vertex and edges, become the only
+    /// copy ([`Geometry::triangle_edges`] reads them), which saves 32 bytes a triangle (36 for
+    /// the vertices, less 4 for where they are packed). What builds, refits, splits or packs
+    /// primitives panics afterwards; parts can still be placed. The meshes placed many
+    /// times keep theirs. Returns false, and keeps them, if some triangle is in no part's tree
+    /// (nothing is then saved).
+    pub fn release_triangles(&mut self) -> bool {
+        if self.released.is_some() {
+            return true;
+        }
+        let count = self.triangles.len();
+        let mut slot = vec![NO_SLOT; count];
+        for part in &self.parts {
+            for (i, &p) in part.wide.prim_indices.iter().enumerate() {
+                // Spatial splits put a triangle in several leaves: any of them holds it.
+                if (p as usize) < count && slot[p as usize] == NO_SLOT {
+                    slot[p as usize] = i as u32;
+                }
+            }
+        }
+        if slot.contains(&NO_SLOT) {
+            return false;
+        }
+        self.triangles = Vec::new();
+        self.released = Some(Released { count, slot });
+        true
+    }
+
+    /// Triangle `prim` in the object space of its part, as `[v0, e1 = v1 - v0, e2 = v2 - v0]`:
+    /// the values the packed intersection test uses, the same bits whether or not the
+    /// triangles were released.
+    #[inline]
+    pub fn triangle_edges(&self, prim: usize) -> [Vec3; 3] {
+        match &self.released {
+            None => {
+                let [a, b, c] = self.triangles[prim];
+                [a, b - a, c - a]
+            }
+            Some(r) => self.parts[self.prim_part.get(prim).map_or(0, |&k| k as usize)].packed.get(r.slot[prim]),
+        }
+    }
+
+    /// [`Geometry::triangle_edges`] in the world: the vertex placed, the edges turned.
+    pub fn world_triangle_edges(&self, prim: usize) -> [Vec3; 3] {
+        let [v0, e1, e2] = self.triangle_edges(prim);
+        match self.prim_part.get(prim).and_then(|&k| self.parts.get(k as usize)) {
+            Some(part) if !part.instance.is_identity() => {
+                let m = &part.instance.to_world;
+                [part.instance.world_point(v0), m.transform_vector3(e1), m.transform_vector3(e2)]
+            }
+            _ => [v0, e1, e2],
+        }
     }
 
     /// Recomputes the primitive boxes (after vertices moved).
@@ -245,7 +327,7 @@ impl Geometry {
         use rayon::prelude::*;
         // Into the previous frame's memory (a dynamic scene does this every frame).
         let mut boxes = std::mem::take(&mut self.boxes);
-        self.triangles.par_iter().map(|&[a, b, c]| triangle_bounds(a, b, c)).collect_into_vec(&mut boxes);
+        self.scene_triangles().par_iter().map(|&[a, b, c]| triangle_bounds(a, b, c)).collect_into_vec(&mut boxes);
         boxes.extend(self.spheres.iter().map(|s| s.sphere.bounds()));
         self.boxes = boxes;
     }
@@ -276,7 +358,7 @@ impl Geometry {
     /// A BVH over the whole scene by `builder`, with its timings, from the current boxes (and
     /// the triangles, which the SBVH clips); not set.
     pub fn build_report(&self, builder: &Builder) -> BuildReport {
-        builder.build_timed_with_triangles(&self.boxes, &self.triangles)
+        builder.build_timed_with_triangles(&self.boxes, self.scene_triangles())
     }
 
     /// Sets one BVH over the whole scene (built over [`Geometry::boxes`] of the current
@@ -341,7 +423,7 @@ impl Geometry {
             boxes.clone_from(&self.boxes);
             return;
         };
-        let (triangles, spheres) = (&self.triangles, &self.spheres);
+        let (triangles, spheres) = (self.scene_triangles(), &self.spheres);
         prims
             .par_iter()
             .map(|&p| match triangles.get(p as usize) {
@@ -355,11 +437,12 @@ impl Geometry {
     /// The triangles of part `k`, in its order: the first primitives of
     /// [`Geometry::part_boxes`] (the spheres come after them).
     pub fn part_triangles(&self, k: usize) -> Cow<'_, [[Vec3; 3]]> {
+        let triangles = self.scene_triangles();
         match &self.parts[k].prims {
-            None => Cow::Borrowed(&self.triangles),
+            None => Cow::Borrowed(triangles),
             Some(prims) => {
-                let n = self.triangles.len() as u32;
-                Cow::Owned(prims.iter().take_while(|&&p| p < n).map(|&p| self.triangles[p as usize]).collect())
+                let n = triangles.len() as u32;
+                Cow::Owned(prims.iter().take_while(|&&p| p < n).map(|&p| triangles[p as usize]).collect())
             }
         }
     }
@@ -435,6 +518,7 @@ impl Geometry {
     /// Packs part `k`'s triangles in its wide tree's leaf order (into the previous frame's
     /// memory: in a dynamic scene this runs every frame).
     fn pack_part(&mut self, k: usize) {
+        self.scene_triangles();
         let part = &mut self.parts[k];
         part.packed.repack(&part.wide.prim_indices, &self.triangles);
         let n_tris = self.triangles.len() as u32;
@@ -488,6 +572,7 @@ impl Geometry {
         let (copies_triangles, copies_traced) = self.copies.memory();
         GeometryMemory {
             triangles: bytes(self.triangles.capacity(), size_of::<[Vec3; 3]>())
+                + self.released.as_ref().map_or(0, |r| bytes(r.slot.capacity(), size_of::<u32>()))
                 + bytes(self.triangle_material.capacity(), size_of::<u32>())
                 + bytes(self.triangle_uv.capacity(), size_of::<[Vec2; 3]>())
                 + copies_triangles,
@@ -533,9 +618,10 @@ impl Geometry {
         &self.parts[0].wide
     }
 
-    /// Triangle `prim` where it is in the world.
+    /// Triangle `prim` where it is in the world (not after [`Geometry::release_triangles`]:
+    /// [`Geometry::world_triangle_edges`] reads a released one).
     pub fn world_triangle(&self, prim: usize) -> [Vec3; 3] {
-        let t = self.triangles[prim];
+        let t = self.scene_triangles()[prim];
         match self.prim_part.get(prim).and_then(|&k| self.parts.get(k as usize)) {
             Some(part) if !part.instance.is_identity() => t.map(|v| part.instance.world_point(v)),
             _ => t,
@@ -547,7 +633,7 @@ impl Geometry {
     /// rotations, translations and uniform scales, the rigid motions parts get.
     pub fn world_sphere(&self, i: usize) -> Sphere {
         let s = self.spheres[i].sphere;
-        match self.prim_part.get(self.triangles.len() + i).and_then(|&k| self.parts.get(k as usize)) {
+        match self.prim_part.get(self.triangle_count() + i).and_then(|&k| self.parts.get(k as usize)) {
             Some(part) if !part.instance.is_identity() => Sphere {
                 center: part.instance.world_point(s.center),
                 radius: s.radius * part.instance.to_world.matrix3.determinant().abs().cbrt(),
@@ -793,11 +879,19 @@ impl Geometry {
     fn test_prim(&self, prim: u32, part: u32, ray: &mut Ray, best: &mut Option<Hit>) -> bool {
         // The primitive tests report hits at exactly `ray.tmax` too, for the tie rule.
         let probe = &*ray;
-        let hit = if (prim as usize) < self.triangles.len() {
-            let [a, b, c] = self.triangles[prim as usize];
-            intersect_triangle(probe, a, b, c).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v, slot: NO_SLOT, part })
+        let n_tris = self.triangle_count();
+        let hit = if (prim as usize) < n_tris {
+            let [v0, e1, e2] = self.triangle_edges(prim as usize);
+            intersect_triangle_edges(probe, v0, e1, e2).map(|h| Hit {
+                t: h.t,
+                prim,
+                u: h.u,
+                v: h.v,
+                slot: NO_SLOT,
+                part,
+            })
         } else {
-            let s = &self.spheres[prim as usize - self.triangles.len()].sphere;
+            let s = &self.spheres[prim as usize - n_tris].sphere;
             s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0, slot: NO_SLOT, part })
         };
         Self::keep_closest(hit, ray, best)
@@ -821,7 +915,7 @@ impl Geometry {
             let (p, n, material, rel) = local(&instance.object_ray(ray));
             // A mirroring transform turns a triangle's e1 × e2 around; a sphere's outward
             // normal stays outward.
-            let flip = instance.mirrors() && (copy || (hit.prim as usize) < self.triangles.len());
+            let flip = instance.mirrors() && (copy || (hit.prim as usize) < self.triangle_count());
             let n = instance.world_normal(if flip { -n } else { n });
             (instance.world_point(p), n.normalize_or(Vec3::Z), material, rel)
         };
@@ -842,15 +936,12 @@ impl Geometry {
     /// Position, unit normal, material and relative offset of a hit in `part`'s object space
     /// (`ray` in that space too).
     fn local_surface(&self, part: &Part, ray: &Ray, hit: &Hit) -> (Vec3, Vec3, u32, f32) {
-        let n_tris = self.triangles.len();
+        let n_tris = self.triangle_count();
         if (hit.prim as usize) < n_tris {
             // `v0 + u e1 + v e2` and `e1 × e2`, from the packed copy when the hit says where
             // it is (the same values: the packed edges are computed as here).
             let [v0, e1, e2] = match hit.slot {
-                NO_SLOT => {
-                    let [a, b, c] = self.triangles[hit.prim as usize];
-                    [a, b - a, c - a]
-                }
+                NO_SLOT => self.triangle_edges(hit.prim as usize),
                 slot => part.packed.get(slot),
             };
             let (p, n) = triangle_surface(v0, e1, e2, hit.u, hit.v);
@@ -940,10 +1031,11 @@ impl Part {
     fn test_packed(&self, g: &Geometry, k: u32, i: u32, ray: &mut Ray, best: &mut Option<Hit>) -> bool {
         let prim = self.wide.prim_indices[i as usize];
         let probe = &*ray;
-        let hit = if (prim as usize) < g.triangles.len() {
+        let n_tris = g.triangle_count();
+        let hit = if (prim as usize) < n_tris {
             self.packed.intersect(i, probe).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v, slot: i, part: k })
         } else {
-            let s = &g.spheres[prim as usize - g.triangles.len()].sphere;
+            let s = &g.spheres[prim as usize - n_tris].sphere;
             s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0, slot: NO_SLOT, part: k })
         };
         Geometry::keep_closest(hit, ray, best)
@@ -979,10 +1071,11 @@ impl Part {
         self.wide.any_hit_leaves(ray, |first, count, r| {
             (first..first + count).any(|i| {
                 let prim = self.wide.prim_indices[i as usize] as usize;
-                if prim < g.triangles.len() {
+                let n_tris = g.triangle_count();
+                if prim < n_tris {
                     self.packed.intersect(i, r).is_some()
-                } else if prim - g.triangles.len() < g.spheres.len() {
-                    g.spheres[prim - g.triangles.len()].sphere.intersect(r).is_some()
+                } else if prim - n_tris < g.spheres.len() {
+                    g.spheres[prim - n_tris].sphere.intersect(r).is_some()
                 } else {
                     false
                 }

@@ -85,7 +85,7 @@ fn print_summary(args: &ViewArgs, pipeline: &FramePipeline, summary: &Summary) {
         "{} frames of {} ({} triangles, {}x{}, 1 spp, {}): median pose {:.2} ms + refit {:.2} ms + build {:.2} ms + wide tree and packing {:.2} ms + render {:.2} ms = frame {:.2} ms ({:.1} fps), {:.1} Mrays/s",
         summary.times.len(),
         args.scene,
-        pipeline.geometry().triangles.len(),
+        pipeline.geometry().triangle_count(),
         pipeline.settings().width,
         pipeline.settings().height,
         pipeline.settings().builder,

@@ -131,7 +131,7 @@ pub fn run(args: &ViewArgs, pipeline: FramePipeline) -> Result<(), WindowError> 
     let scene = pipeline.scene();
     let views: Vec<(String, CameraDesc)> = scene.views.clone();
     let size = scene.bounds().extent().length();
-    let triangles = pipeline.geometry().triangles.len();
+    let triangles = pipeline.geometry().triangle_count();
     let animated = pipeline.is_animated();
     let settings = pipeline.settings().clone();
     let camera = CameraControl::new(pipeline.camera(), size);
