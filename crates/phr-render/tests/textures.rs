@@ -60,6 +60,12 @@ fn srgb_to_linear(c: u8) -> f32 {
 /// Renders `scene_file` (a quad filling the view, textured with [`TEXELS`]) and checks the
 /// pixels at the texel centres against the texels' linear colours times `tint`.
 fn check_texels(scene_file: &Path, tint: f32) {
+    check_texels_shown(scene_file, tint, [0, 1, 2, 3]);
+}
+
+/// [`check_texels`] where the view's top left, top right, bottom left and bottom right
+/// quarters show the texels `shown` (a texture transform moved them).
+fn check_texels_shown(scene_file: &Path, tint: f32, shown: [usize; 4]) {
     let scene = load_scene(scene_file).unwrap();
     assert_eq!(scene.textures.len(), 1);
     let mut geometry = Geometry::new(&scene);
@@ -72,7 +78,7 @@ fn check_texels(scene_file: &Path, tint: f32) {
         let (image, _) = renderer.render_frame(0);
         // The quad fills the view (which spans ±2 tan 20° = ±0.728 at its distance): its
         // texel centres, at ±0.5, fall at pixels 32 ± 0.5 / 0.728 · 32 = 32 ± 22.
-        for (k, texel) in TEXELS.iter().enumerate() {
+        for (k, texel) in shown.map(|t| TEXELS[t]).iter().enumerate() {
             let (x, y) = (32 + if k % 2 == 0 { -22 } else { 22 }, 32 + if k < 2 { -22 } else { 22 });
             let pixel = image[(y * 64 + x) as usize];
             let expected = tint * Vec3::from(texel.map(srgb_to_linear));
@@ -97,7 +103,32 @@ fn a_textured_obj_quad_shows_its_texels() {
 #[test]
 fn a_textured_gltf_quad_shows_its_texels_times_the_base_colour() {
     let dir = folder("gltf");
-    write_scene(&dir, "checker.png", false);
+    check_texels(&write_gltf_scene(&dir, ""), 0.5);
+}
+
+/// `KHR_texture_transform` on the base-colour texture: scale `(-1, 1)`, then a quarter turn,
+/// then an offset of `(0.5, 0)` map the quad's `(u, v)` to `(v + 0.5, u)` (with the rotation
+/// of the extension's sample model: `+u` turns towards `-v`), so the top left quarter shows
+/// texel 1, the top right texel 3, the bottom left texel 0 and the bottom right texel 2.
+/// The other rotation, or another order of the three, shows grey or blue at the top left.
+/// A value that is not finite is an error.
+#[test]
+fn a_gltf_texture_transform_moves_the_texels() {
+    let dir = folder("gltf-transform");
+    let transform =
+        r#", "extensions": {"KHR_texture_transform": {"offset": [0.5, 0], "rotation": 1.5707964, "scale": [-1, 1]}}"#;
+    check_texels_shown(&write_gltf_scene(&dir, transform), 0.5, [1, 3, 0, 2]);
+    let broken = folder("gltf-transform-inf");
+    let infinite = r#", "extensions": {"KHR_texture_transform": {"rotation": 1e39}}"#;
+    let Err(error) = load_scene(&write_gltf_scene(&broken, infinite)) else { panic!("an infinite rotation loaded") };
+    let error = error.to_string();
+    assert!(error.contains("quad.gltf") && error.contains("KHR_texture_transform"), "{error}");
+}
+
+/// Writes the textured quad of [`write_scene`] as `quad.gltf`, with `info` added to its
+/// `baseColorTexture` object, and a scene file `gltf.json` showing it; returns the scene file.
+fn write_gltf_scene(dir: &Path, info: &str) -> PathBuf {
+    write_scene(dir, "checker.png", false);
     let mut buffer = Vec::new();
     let floats = [-1.0f32, -1.0, 0.0, 1.0, -1.0, 0.0, 1.0, 1.0, 0.0, -1.0, 1.0, 0.0];
     let uvs = [0.0f32, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0];
@@ -115,7 +146,7 @@ fn a_textured_gltf_quad_shows_its_texels_times_the_base_colour() {
   "nodes": [{{"mesh": 0}}],
   "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}}, "indices": 2, "material": 0}}]}}],
   "materials": [{{"name": "checker", "pbrMetallicRoughness": {{"baseColorFactor": [0.5, 0.5, 0.5, 1], "metallicFactor": 0,
-    "baseColorTexture": {{"index": 0}}}}}}],
+    "baseColorTexture": {{"index": 0{info}}}}}}}],
   "textures": [{{"source": 0}}],
   "images": [{{"uri": "checker.png"}}],
   "buffers": [{{"byteLength": {len}, "uri": "{uri}"}}],
@@ -137,7 +168,7 @@ fn a_textured_gltf_quad_shows_its_texels_times_the_base_colour() {
     let scene =
         scene.replace(r#"{ "type": "obj_mtl", "file": "quad.obj" }"#, r#"{ "type": "gltf", "file": "quad.gltf" }"#);
     std::fs::write(dir.join("gltf.json"), scene).unwrap();
-    check_texels(&dir.join("gltf.json"), 0.5);
+    dir.join("gltf.json")
 }
 
 #[test]

@@ -10,12 +10,14 @@
 //! a file's animations play together.
 //!
 //! Textures: `TEXCOORD_0` and each material's `baseColorTexture` (an image file inside the
-//! asset's folder, a GLB buffer view or a `data:` URI); glTF's `v` runs down the image, so it
-//! is stored as `1 − v` ([`MeshData::uvs`] follows OBJ: `v = 0` is the image's bottom).
+//! asset's folder, a GLB buffer view or a `data:` URI), with its `KHR_texture_transform`
+//! (offset, rotation, scale) applied to the coordinates of the primitives that use it; glTF's
+//! `v` runs down the image, so it is stored as `1 − v` ([`MeshData::uvs`] follows OBJ: `v = 0`
+//! is the image's bottom).
 //!
 //! Limits: other primitive modes (points, lines, strips, fans) and orthographic cameras are
-//! skipped; sparse accessors, morph targets and skins are not supported; texture transforms,
-//! samplers' wrap modes other than repeat, and other texture coordinate sets are ignored.
+//! skipped; sparse accessors, morph targets and skins are not supported; samplers' wrap modes
+//! other than repeat, and other texture coordinate sets are ignored.
 
 use super::{
     check_finite, finish, GltfMaterial, ImageSource, Location, MeshData, SharedMesh, SourceCamera, SourceMaterial,
@@ -346,6 +348,15 @@ impl Builder<'_> {
         let first_triangle = self.mesh.triangles.len();
         self.triangles(&indices, base, count, context)?;
         self.texture_coordinates(primitive, &indices, first_triangle, count, context)?;
+        let map = base_color_transform(&primitive.material()).map_err(|e| self.error(format!("{context}: {e}")))?;
+        if let (Some(map), Some(uvs)) = (map, self.mesh.uvs.get_mut(first_triangle..)) {
+            // Stored as (u, 1 − v); the transform works on glTF's (u, v).
+            let apply = |[u, w]: [f32; 2]| {
+                let t = map.transform_point2(glam::Vec2::new(u, 1.0 - w));
+                [t.x, 1.0 - t.y]
+            };
+            uvs.iter_mut().for_each(|corners| *corners = corners.map(apply));
+        }
         let group = self.group(primitive.material())?;
         let triangles = self.mesh.triangles.len();
         self.mesh.triangle_group.resize(triangles, group);
@@ -545,7 +556,7 @@ impl Builder<'_> {
     fn base_color_image(&self, material: &::gltf::Material, name: &str) -> Result<Option<ImageSource>, LoadError> {
         use ::gltf::image::Source;
         let Some(info) = material.pbr_metallic_roughness().base_color_texture() else { return Ok(None) };
-        if info.tex_coord() != 0 {
+        if texture_set(&info) != 0 {
             return Ok(None);
         }
         let image = info.texture().source();
@@ -593,6 +604,33 @@ impl Builder<'_> {
         });
         Ok(())
     }
+}
+
+/// The texture coordinate set a texture reads: its own, unless its `KHR_texture_transform`
+/// names another.
+fn texture_set(info: &::gltf::texture::Info) -> u32 {
+    info.texture_transform().and_then(|t| t.tex_coord()).unwrap_or(info.tex_coord())
+}
+
+/// The `KHR_texture_transform` of a material's base-colour texture, as the map of glTF texture
+/// coordinates (`v` down) it makes: scale, then rotate, then offset. The rotation follows the
+/// extension's sample model and Khronos's sample viewer (glTF issue #1563): a positive angle
+/// turns the coordinates from `+u` towards `-v`. `None` without a transform (or without a
+/// texture of set 0, whose coordinates are then not used); an error for non-finite values.
+fn base_color_transform(material: &::gltf::Material) -> Result<Option<glam::Affine2>, String> {
+    let Some(info) = material.pbr_metallic_roughness().base_color_texture() else { return Ok(None) };
+    let Some(transform) = info.texture_transform().filter(|_| texture_set(&info) == 0) else { return Ok(None) };
+    let ([ox, oy], rotation, [sx, sy]) = (transform.offset(), transform.rotation(), transform.scale());
+    if ![ox, oy, rotation, sx, sy].iter().all(|x| x.is_finite()) {
+        let name = material.name().map_or_else(|| format!("material_{}", material.index().unwrap_or(0)), str::to_owned);
+        return Err(format!("material `{name}`: KHR_texture_transform has a value that is not finite"));
+    }
+    let (sin, cos) = rotation.sin_cos();
+    let rotate = glam::Mat2::from_cols(glam::Vec2::new(cos, -sin), glam::Vec2::new(sin, cos));
+    Ok(Some(glam::Affine2::from_mat2_translation(
+        rotate * glam::Mat2::from_diagonal(glam::Vec2::new(sx, sy)),
+        glam::Vec2::new(ox, oy),
+    )))
 }
 
 fn convert_material(material: &::gltf::Material) -> GltfMaterial {
