@@ -1,5 +1,6 @@
 //! Colour textures: an 8-bit sRGB image, looked up with bilinear filtering and repeating
-//! (wrapping) texture coordinates, decoded to linear colour through a 256-entry table.
+//! (wrapping) texture coordinates, decoded to linear colour through a 256-entry table. And
+//! alpha masks ([`AlphaMask`]): 8-bit coverage, filtered the same way and cut at one half.
 //!
 //! Texels stay 8-bit (4 bytes each: Sponza's textures take 18 × 4 MB instead of 18 × 12 MB as
 //! linear floats); decoding happens per lookup, on the four texels the filter reads, so the
@@ -44,17 +45,7 @@ impl Texture {
     /// Reads an image (PNG or JPEG, from a file or from bytes inside an asset), naming it in
     /// any error.
     pub fn load(source: &ImageSource) -> Result<Texture, LoadError> {
-        let name = source.name();
-        let read;
-        let bytes: &[u8] = match source {
-            ImageSource::File(file) => {
-                read = crate::load::input::read_file(file, "the texture")?;
-                &read
-            }
-            ImageSource::Embedded { bytes, .. } => bytes,
-        };
-        use image::ImageFormat::{Jpeg, Png};
-        let image = crate::load::input::decode_image(bytes, &name, "texture", &[Png, Jpeg])?.into_rgb8();
+        let image = read_image(source, "texture")?.into_rgb8();
         let (width, height) = image.dimensions();
         let texels = image.pixels().map(|p| p.0).collect();
         Ok(Texture { width, height, texels })
@@ -83,19 +74,110 @@ impl Texture {
     /// [0, 1]. Texel centres lie at `((x + 0.5) / width, 1 − (y + 0.5) / height)`.
     #[inline]
     pub fn sample(&self, uv: Vec2) -> Vec3 {
-        if !uv.is_finite() {
-            return self.texel(0, 0);
-        }
-        // Continuous texel coordinates, centres at integers; wrapped into range first so
-        // that huge coordinates keep their precision.
-        let u = uv.x.rem_euclid(1.0) * self.width as f32 - 0.5;
-        let v = (1.0 - uv.y.rem_euclid(1.0)) * self.height as f32 - 0.5;
-        let (x0, y0) = (u.floor(), v.floor());
-        let (fx, fy) = (u - x0, v - y0);
-        let (x0, y0) = (x0 as i64, y0 as i64);
+        let Some((x0, y0, fx, fy)) = footprint(self.width, self.height, uv) else { return self.texel(0, 0) };
         let top = self.texel(x0, y0).lerp(self.texel(x0 + 1, y0), fx);
         let bottom = self.texel(x0, y0 + 1).lerp(self.texel(x0 + 1, y0 + 1), fx);
         top.lerp(bottom, fy)
+    }
+}
+
+/// A PNG or JPEG image (`what` it is for, in errors), from a file or from bytes inside an
+/// asset.
+fn read_image(source: &ImageSource, what: &str) -> Result<image::DynamicImage, LoadError> {
+    let read;
+    let bytes: &[u8] = match source {
+        ImageSource::File(file) => {
+            read = crate::load::input::read_file(file, &format!("the {what}"))?;
+            &read
+        }
+        ImageSource::Embedded { bytes, .. } => bytes,
+    };
+    use image::ImageFormat::{Jpeg, Png};
+    crate::load::input::decode_image(bytes, &source.name(), what, &[Png, Jpeg])
+}
+
+/// The bilinear footprint of `uv` on a `width × height` image with repeating coordinates: the
+/// top left texel `(x0, y0)` of the four (from the image's top left, not yet wrapped) and the
+/// weights `fx`, `fy` of the right and lower ones. `None` for non-finite coordinates.
+#[inline]
+fn footprint(width: u32, height: u32, uv: Vec2) -> Option<(i64, i64, f32, f32)> {
+    if !uv.is_finite() {
+        return None;
+    }
+    // Continuous texel coordinates, centres at integers; wrapped into range first so that
+    // huge coordinates keep their precision.
+    let u = uv.x.rem_euclid(1.0) * width as f32 - 0.5;
+    let v = (1.0 - uv.y.rem_euclid(1.0)) * height as f32 - 0.5;
+    let (x0, y0) = (u.floor(), v.floor());
+    Some((x0 as i64, y0 as i64, u - x0, v - y0))
+}
+
+/// Where a surface is, by an image: an MTL `map_d` (a grey image, or the alpha channel of
+/// one that has it; Crytek's Sponza cuts its leaves and chains out so). The coverage is
+/// filtered like a colour texture's and the surface is there where it is at least one half:
+/// an alpha test, as rasterisers and Embree's filter functions do it, so a mask is a cutout
+/// with sharp edges, not a blend.
+#[derive(Clone, Debug)]
+pub struct AlphaMask {
+    width: u32,
+    height: u32,
+    /// Row-major from the top row; 255 is fully there.
+    coverage: Vec<u8>,
+    /// The surface is there where the filtered coverage reaches it: one half, or a glTF
+    /// material's alpha cutoff over its base colour's alpha.
+    threshold: f32,
+}
+
+impl AlphaMask {
+    /// A mask of `width × height` coverage values, row-major from the top.
+    pub fn new(width: u32, height: u32, coverage: Vec<u8>) -> AlphaMask {
+        assert!(width > 0 && height > 0 && coverage.len() == width as usize * height as usize, "mask size");
+        AlphaMask { width, height, coverage, threshold: 0.5 }
+    }
+
+    /// The mask with the surface there where the coverage reaches `threshold` instead of one
+    /// half.
+    pub fn with_threshold(self, threshold: f32) -> AlphaMask {
+        AlphaMask { threshold, ..self }
+    }
+
+    /// Reads a mask image (PNG or JPEG): its alpha channel if it has one, else its grey
+    /// level. Errors name the image.
+    pub fn load(source: &ImageSource) -> Result<AlphaMask, LoadError> {
+        let image = read_image(source, "alpha mask")?;
+        let (width, height) = (image.width(), image.height());
+        let coverage = if image.color().has_alpha() {
+            image.into_rgba8().pixels().map(|p| p.0[3]).collect()
+        } else {
+            image.into_luma8().into_raw()
+        };
+        Ok(AlphaMask::new(width, height, coverage))
+    }
+
+    /// Memory the mask takes, in bytes.
+    pub fn bytes(&self) -> usize {
+        self.coverage.len()
+    }
+
+    #[inline]
+    fn value(&self, x: i64, y: i64) -> f32 {
+        let x = x.rem_euclid(self.width as i64) as usize;
+        let y = y.rem_euclid(self.height as i64) as usize;
+        f32::from(self.coverage[y * self.width as usize + x]) / 255.0
+    }
+
+    /// Whether the surface is there at texture coordinates `uv`: the bilinearly filtered
+    /// coverage (repeating outside [0, 1], texel centres as [`Texture::sample`]'s) reaches the
+    /// threshold (one half unless [`AlphaMask::with_threshold`] says otherwise).
+    #[inline]
+    pub fn covers(&self, uv: Vec2) -> bool {
+        let Some((x0, y0, fx, fy)) = footprint(self.width, self.height, uv) else {
+            return self.value(0, 0) >= self.threshold;
+        };
+        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+        let top = lerp(self.value(x0, y0), self.value(x0 + 1, y0), fx);
+        let bottom = lerp(self.value(x0, y0 + 1), self.value(x0 + 1, y0 + 1), fx);
+        lerp(top, bottom, fy) >= self.threshold
     }
 }
 
@@ -137,6 +219,40 @@ mod tests {
         // Repeats: u + 3 and v − 2 give the same colour.
         let a = t.sample(Vec2::new(0.3, 0.6));
         assert!((t.sample(Vec2::new(3.3, -1.4)) - a).length() < 1e-5);
+    }
+
+    /// A mask covers where its filtered value reaches one half: at its texel centres as the
+    /// texels say, between a full and an empty texel up to half way, and repeating.
+    #[test]
+    fn masks_cut_at_one_half() {
+        // 2 × 1: the left texel there, the right one not.
+        let mask = AlphaMask::new(2, 1, vec![255, 0]);
+        assert!(mask.covers(Vec2::new(0.25, 0.5)));
+        assert!(!mask.covers(Vec2::new(0.75, 0.5)));
+        // Texel centres at u = 0.25 and 0.75: the value crosses one half at u = 0.5 (and at
+        // u = 0, wrapped).
+        assert!(mask.covers(Vec2::new(0.49, 0.5)) && !mask.covers(Vec2::new(0.51, 0.5)));
+        assert!(mask.covers(Vec2::new(0.01, 0.5)) && !mask.covers(Vec2::new(0.99, 0.5)));
+        assert!(mask.covers(Vec2::new(3.25, -7.0)) && !mask.covers(Vec2::new(-2.25, 0.5)));
+        // A value below one half covers nothing; one of exactly 128 (0.502) covers.
+        assert!(!AlphaMask::new(1, 1, vec![127]).covers(Vec2::new(0.5, 0.5)));
+        assert!(AlphaMask::new(1, 1, vec![128]).covers(Vec2::new(0.5, 0.5)));
+    }
+
+    /// The alpha channel of an image that has one, else its grey level.
+    #[test]
+    fn masks_read_alpha_or_grey() {
+        let dir = std::env::temp_dir().join(format!("phr-mask-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let rgba = image::RgbaImage::from_fn(2, 1, |x, _| image::Rgba([255, 255, 255, if x == 0 { 0 } else { 255 }]));
+        rgba.save(dir.join("rgba.png")).unwrap();
+        let grey = image::GrayImage::from_fn(2, 1, |x, _| image::Luma([if x == 0 { 255 } else { 0 }]));
+        grey.save(dir.join("grey.png")).unwrap();
+        let rgba = AlphaMask::load(&ImageSource::File(dir.join("rgba.png"))).unwrap();
+        assert!(!rgba.covers(Vec2::new(0.25, 0.5)) && rgba.covers(Vec2::new(0.75, 0.5)));
+        let grey = AlphaMask::load(&ImageSource::File(dir.join("grey.png"))).unwrap();
+        assert!(grey.covers(Vec2::new(0.25, 0.5)) && !grey.covers(Vec2::new(0.75, 0.5)));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

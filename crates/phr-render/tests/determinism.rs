@@ -152,7 +152,8 @@ fn wavefront_and_single_ray_tracing_give_the_same_image() {
 /// The batch queries the wavefront uses give each ray what the one-ray queries give it, on
 /// scenes the interleaved traversal covers only in part: the built-in scene cut into three
 /// parts, one of them moved by a transform (searched one ray at a time after the parts in
-/// place), and a mesh placed as a copy under a floor (`scenes/instances/bunnies_1.json`).
+/// place), a mesh placed as a copy under a floor (`scenes/instances/bunnies_1.json`), and a
+/// quad cut out by an alpha mask (`tests/references/alpha_mask.json`).
 /// Camera rays, rays in every direction from inside the scene, and finite shadow-like
 /// intervals; the renders of both tracings agree too.
 #[test]
@@ -170,12 +171,16 @@ fn batch_queries_equal_single_ray_queries_on_parts_and_copies() {
     let mut copies = Geometry::new(&bunnies);
     copies.build(&Builder::default());
     let cornell = builtin::cornell_knot();
+    let masked = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/references/alpha_mask.json");
+    let masked = phr_render::scene::load_scene(std::path::Path::new(masked)).expect("alpha_mask.json");
+    let mut cutout = Geometry::new(&masked);
+    cutout.build(&Builder::default());
     // A point to aim rays at, and a spread around it: the middle of the built-in box, and
     // the one bunny (far to the left of its file's views).
-    let aims = [(cornell_view_target(), 150.0), (Vec3::new(-42.7, 1.0, 0.1), 1.0)];
-    for ((name, geometry, scene), (aim, spread)) in
-        [("split builtin", &split, &cornell), ("bunny copy", &copies, &bunnies)].into_iter().zip(aims)
-    {
+    let aims = [(cornell_view_target(), 150.0), (Vec3::new(-42.7, 1.0, 0.1), 1.0), (Vec3::new(0.0, 0.9, 0.15), 0.7)];
+    let cases =
+        [("split builtin", &split, &cornell), ("bunny copy", &copies, &bunnies), ("alpha mask", &cutout, &masked)];
+    for ((name, geometry, scene), (aim, spread)) in cases.into_iter().zip(aims) {
         let view = scene.view(None).expect("default view");
         let settings = RenderSettings { width: 24, height: 24, spp: 1, max_depth: MAX_DEPTH };
         let renderer = Renderer::new(scene, geometry, &view, &settings, None);
@@ -208,7 +213,7 @@ fn batch_queries_equal_single_ray_queries_on_parts_and_copies() {
         let found = hits.iter().filter(|h| h.is_some()).count();
         assert!(found > rays.len() / 5, "{name}: only {found} of {} rays hit", rays.len());
         let parts: std::collections::BTreeSet<u32> = hits.iter().flatten().map(|h| h.part).collect();
-        assert!(parts.len() > 1, "{name}: every hit in one part: {parts:?}");
+        assert!(parts.len() > 1 || name == "alpha mask", "{name}: every hit in one part: {parts:?}");
         let single = renderer.with_tracing(Tracing::Single);
         let (a, _) = single.render_frame(1);
         let (b, _) = Renderer::new(scene, geometry, &view, &settings, None).render_frame(1);
@@ -328,4 +333,39 @@ fn a_released_geometry_is_not_rebuilt() {
     geometry.build(&Builder::default());
     assert!(geometry.release_triangles());
     geometry.build(&Builder::default());
+}
+
+/// An alpha mask removes hits and nothing else: against the same quad without its mask, every
+/// ray that hits the masked quad hits it at the same place, every ray whose hits differ hit
+/// the quad without the mask, and some rays pass through the holes to the wall behind.
+#[test]
+fn alpha_masks_only_remove_hits() {
+    use phr_bvh::Ray;
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/references/alpha_mask.json");
+    let masked = phr_render::scene::load_scene(std::path::Path::new(path)).expect("alpha_mask.json");
+    let leaf = masked.material_index("leaf").expect("the masked material");
+    assert!(masked.material_mask[leaf as usize].is_some());
+    let mut solid = masked.clone();
+    solid.material_mask.iter_mut().for_each(|m| *m = None);
+    let (mut with, mut without) = (Geometry::new(&masked), Geometry::new(&solid));
+    with.build(&Builder::default());
+    without.build(&Builder::default());
+    let view = masked.view(None).expect("default view");
+    let settings = RenderSettings { width: 64, height: 64, spp: 1, max_depth: MAX_DEPTH };
+    let camera = Renderer::new(&masked, &with, &view, &settings, None).camera;
+    let (mut through, mut on_leaf) = (0, 0);
+    for i in 0..64 * 64 {
+        let ray: Ray = camera.ray((i % 64) as f32 + 0.5, (i / 64) as f32 + 0.5);
+        let (a, b) = (with.intersect(&ray), without.intersect(&ray));
+        let material =
+            |g: &Geometry, h: &Option<phr_render::geometry::Hit>| h.map(|h| g.surface_point(&ray, &h).material);
+        if material(&with, &a) == Some(leaf) {
+            on_leaf += 1;
+            assert_eq!(a, b, "ray {i}: a covered hit moved");
+        } else if a != b {
+            assert_eq!(material(&without, &b), Some(leaf), "ray {i}: a hit changed that was not on the leaf");
+            through += 1;
+        }
+    }
+    assert!(on_leaf > 300 && through > 300, "{on_leaf} rays on the leaf, {through} through its holes");
 }

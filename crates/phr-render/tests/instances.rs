@@ -225,6 +225,19 @@ fn copies_of_an_emitter_are_written_out() {
     assert_eq!(lights.len(), 6, "each copy's two triangles are lights where they are");
 }
 
+/// Copies of a mesh with an alpha mask (MTL `map_d`) are written out too: the copies' leaf
+/// test does not look at masks, the scene's parts do.
+#[test]
+fn copies_of_an_alpha_masked_mesh_are_written_out() {
+    let path = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/references/alpha_mask.json"));
+    let text = r#"{"objects": [{"type": "obj_mtl", "file": "alpha_mask.obj",
+                     "instances": [{"translate": [0, 0, 0]}, {"translate": [4, 0, 0]}]}]}"#;
+    let scene = parse_scene(text, &path).unwrap();
+    assert!(scene.instanced.is_empty());
+    assert_eq!(scene.meshes.len(), 2);
+    assert_eq!(scene.triangle_count(), 12);
+}
+
 /// A glTF whose one-triangle mesh three nodes place: at the root, under a moved and turned
 /// parent, and scaled to zero (hidden); and a second mesh placed once.
 fn shared_gltf() -> String {

@@ -7,7 +7,8 @@
 //! texture), where OBJ texture coordinates and an MTL `map_Kd` image colour three walls, and
 //! `tests/references/environment` (made by `make_environment.py` with Mitsuba's own `envmap`
 //! emitter and its `prb_basic` integrator), where an HDR environment map with a small sun
-//! lights a diffuse and a mirror ball.
+//! lights a diffuse and a mirror ball, and `tests/references/alpha_mask` (made by
+//! `make_alpha_mask.py` with Mitsuba's `mask` BSDF), where an MTL `map_d` cuts holes in a quad.
 //!
 //! Every reference is checked with both estimators, which must converge to the same image.
 //! Renders with the thesis's estimator are judged with `--test-spp` (the reference's own noise
@@ -180,11 +181,19 @@ fn environment_matches_reference() {
     check_both(own_reference("environment"));
 }
 
+/// An MTL `map_d` alpha mask (a checker tiled twice) against Mitsuba 3's `mask` BSDF: the
+/// wall seen through the holes, and the holes' light on the floor, through closest-hit and
+/// shadow queries (`tests/references/make_alpha_mask.py`).
+#[test]
+fn alpha_mask_matches_reference() {
+    check_both(own_reference("alpha_mask"));
+}
+
 #[test]
 #[ignore = "slow: 1024 spp per scene (run with --ignored)"]
 fn all_references_at_1024_spp() {
     let all = ["cornell_obj", "cornell_glass_mirror", "spheres_sky", "bunny_sky"].map(shared_reference);
-    let own = ["lights_mixed", "textured", "environment"].map(own_reference);
+    let own = ["lights_mixed", "textured", "environment", "alpha_mask"].map(own_reference);
     for reference in all.into_iter().chain(own) {
         for estimator in [Estimator::Implicit, Estimator::Lights] {
             check_with(&reference, 1024, estimator);

@@ -103,7 +103,42 @@ fn a_textured_obj_quad_shows_its_texels() {
 #[test]
 fn a_textured_gltf_quad_shows_its_texels_times_the_base_colour() {
     let dir = folder("gltf");
-    check_texels(&write_gltf_scene(&dir, ""), 0.5);
+    check_texels(&write_gltf_scene(&dir, "", ""), 0.5);
+}
+
+/// glTF `alphaMode` `MASK`: where the base-colour texture's alpha falls below the cutoff the
+/// quad is not there, and the sky behind it shows; elsewhere its texels, as before. The
+/// cutoff is compared with the texture's alpha times the base colour factor's.
+#[test]
+fn a_gltf_alpha_mask_cuts_the_quad() {
+    let dir = folder("gltf-mask");
+    // Texel 1 (top right) at alpha 0.4, the others opaque; factor alpha 0.8, cutoff 0.3: texel
+    // 1 gives 0.32, still there; with cutoff 0.4, 0.32 is a hole.
+    for (cutoff, hole) in [(0.3, false), (0.4, true)] {
+        let material = format!(r#", "alphaMode": "MASK", "alphaCutoff": {cutoff}"#);
+        let scene_file = write_gltf_scene(&dir, "", &material);
+        let json = std::fs::read_to_string(dir.join("quad.gltf"))
+            .unwrap()
+            .replace("[0.5, 0.5, 0.5, 1]", "[0.5, 0.5, 0.5, 0.8]");
+        std::fs::write(dir.join("quad.gltf"), json).unwrap();
+        let alpha = [255, 102, 255, 255];
+        let image = image::RgbaImage::from_fn(2, 2, |x, y| {
+            let k = (y * 2 + x) as usize;
+            let [r, g, b] = TEXELS[k];
+            image::Rgba([r, g, b, alpha[k]])
+        });
+        image.save(dir.join("checker.png")).unwrap();
+        let scene = load_scene(&scene_file).unwrap();
+        let mut geometry = Geometry::new(&scene);
+        geometry.build(&Builder::default());
+        let renderer = Renderer::new(&scene, &geometry, &scene.view(None).unwrap(), &scene.settings, None);
+        let (image, _) = renderer.render_frame(0);
+        let pixel = |x: i32, y: i32| image[(y * 64 + x) as usize];
+        let expected = if hole { Vec3::ONE } else { 0.5 * Vec3::from(TEXELS[1].map(srgb_to_linear)) };
+        assert!((pixel(54, 10) - expected).abs().max_element() < 0.08, "cutoff {cutoff}: {}", pixel(54, 10));
+        let opaque = 0.5 * Vec3::from(TEXELS[0].map(srgb_to_linear));
+        assert!((pixel(10, 10) - opaque).abs().max_element() < 0.08, "cutoff {cutoff}: {}", pixel(10, 10));
+    }
 }
 
 /// `KHR_texture_transform` on the base-colour texture: scale `(-1, 1)`, then a quarter turn,
@@ -117,17 +152,20 @@ fn a_gltf_texture_transform_moves_the_texels() {
     let dir = folder("gltf-transform");
     let transform =
         r#", "extensions": {"KHR_texture_transform": {"offset": [0.5, 0], "rotation": 1.5707964, "scale": [-1, 1]}}"#;
-    check_texels_shown(&write_gltf_scene(&dir, transform), 0.5, [1, 3, 0, 2]);
+    check_texels_shown(&write_gltf_scene(&dir, transform, ""), 0.5, [1, 3, 0, 2]);
     let broken = folder("gltf-transform-inf");
     let infinite = r#", "extensions": {"KHR_texture_transform": {"rotation": 1e39}}"#;
-    let Err(error) = load_scene(&write_gltf_scene(&broken, infinite)) else { panic!("an infinite rotation loaded") };
+    let Err(error) = load_scene(&write_gltf_scene(&broken, infinite, "")) else {
+        panic!("an infinite rotation loaded")
+    };
     let error = error.to_string();
     assert!(error.contains("quad.gltf") && error.contains("KHR_texture_transform"), "{error}");
 }
 
 /// Writes the textured quad of [`write_scene`] as `quad.gltf`, with `info` added to its
-/// `baseColorTexture` object, and a scene file `gltf.json` showing it; returns the scene file.
-fn write_gltf_scene(dir: &Path, info: &str) -> PathBuf {
+/// `baseColorTexture` object and `material` to its material, and a scene file `gltf.json`
+/// showing it; returns the scene file.
+fn write_gltf_scene(dir: &Path, info: &str, material: &str) -> PathBuf {
     write_scene(dir, "checker.png", false);
     let mut buffer = Vec::new();
     let floats = [-1.0f32, -1.0, 0.0, 1.0, -1.0, 0.0, 1.0, 1.0, 0.0, -1.0, 1.0, 0.0];
@@ -146,7 +184,7 @@ fn write_gltf_scene(dir: &Path, info: &str) -> PathBuf {
   "nodes": [{{"mesh": 0}}],
   "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}}, "indices": 2, "material": 0}}]}}],
   "materials": [{{"name": "checker", "pbrMetallicRoughness": {{"baseColorFactor": [0.5, 0.5, 0.5, 1], "metallicFactor": 0,
-    "baseColorTexture": {{"index": 0{info}}}}}}}],
+    "baseColorTexture": {{"index": 0{info}}}}}{material}}}],
   "textures": [{{"source": 0}}],
   "images": [{{"uri": "checker.png"}}],
   "buffers": [{{"byteLength": {len}, "uri": "{uri}"}}],

@@ -121,7 +121,7 @@ impl Copies {
     /// The texture coordinates of copy `copy`'s hit.
     pub fn uv(&self, copy: u32, hit: &Hit) -> Option<Vec2> {
         let mesh = &self.meshes[self.mesh_of[copy as usize] as usize];
-        mesh.triangle_uv.get(hit.prim as usize).map(|corners| super::interpolate_uv(corners, hit))
+        mesh.triangle_uv.get(hit.prim as usize).map(|corners| super::interpolate_uv(corners, hit.u, hit.v))
     }
 
     /// Bytes held: the meshes' triangles (with materials and texture coordinates) and what

@@ -33,6 +33,7 @@
 mod copies;
 
 use crate::scene::{Scene, SphereObject};
+use crate::texture::AlphaMask;
 use glam::{Affine3A, Vec2, Vec3};
 use phr_bvh::builder::BuildReport;
 use phr_bvh::instance::{Instance, TopLevel};
@@ -117,6 +118,10 @@ pub struct Geometry {
     copies: Copies,
     /// After [`Geometry::release_triangles`]: where the packed blocks hold each triangle.
     released: Option<Released>,
+    /// The scene's alpha masks, and each material's (empty if no material has one): a
+    /// triangle hit where its material's mask does not cover it is no hit.
+    masks: Vec<AlphaMask>,
+    material_mask: Vec<Option<u32>>,
 }
 
 /// What replaces the scene-order triangles once they are released: their number, and for
@@ -168,8 +173,9 @@ struct Part {
     /// `bvh` collapsed to [`WIDTH`] children, and the triangles in its leaf order.
     wide: WideBvh<WIDTH>,
     packed: PackedTriangles,
-    /// Some of the primitives are spheres (the leaf test then checks each one's kind).
-    has_spheres: bool,
+    /// Some of the primitives are spheres or triangles with an alpha mask: the leaf test
+    /// then takes each entry on its own ([`Part::test_packed`]) instead of a block of 4.
+    entry_tests: bool,
     instance: Instance,
 }
 
@@ -243,6 +249,8 @@ impl Geometry {
             prim_part: Vec::new(),
             copies: Copies::new(scene),
             released: None,
+            masks: scene.masks.clone(),
+            material_mask: if scene.masks.is_empty() { Vec::new() } else { scene.material_mask.clone() },
         };
         g.update_boxes();
         g
@@ -522,9 +530,13 @@ impl Geometry {
         let part = &mut self.parts[k];
         part.packed.repack(&part.wide.prim_indices, &self.triangles);
         let n_tris = self.triangles.len() as u32;
-        part.has_spheres = match &part.prims {
-            Some(prims) => prims.last().is_some_and(|&p| p >= n_tris),
-            None => !self.spheres.is_empty(),
+        let (material, mask) = (&self.triangle_material, &self.material_mask);
+        let masked = |p: u32| p < n_tris && mask.get(material[p as usize] as usize).is_some_and(Option::is_some);
+        part.entry_tests = match &part.prims {
+            Some(prims) => {
+                prims.last().is_some_and(|&p| p >= n_tris) || (!mask.is_empty() && prims.iter().any(|&p| masked(p)))
+            }
+            None => !self.spheres.is_empty() || (!mask.is_empty() && (0..n_tris).any(masked)),
         };
     }
 
@@ -882,7 +894,7 @@ impl Geometry {
         let n_tris = self.triangle_count();
         let hit = if (prim as usize) < n_tris {
             let [v0, e1, e2] = self.triangle_edges(prim as usize);
-            intersect_triangle_edges(probe, v0, e1, e2).map(|h| Hit {
+            intersect_triangle_edges(probe, v0, e1, e2).filter(|h| self.covers(prim, h.u, h.v)).map(|h| Hit {
                 t: h.t,
                 prim,
                 u: h.u,
@@ -924,13 +936,26 @@ impl Geometry {
         SurfacePoint { position, normal, front, material, offset }
     }
 
+    /// Whether triangle `prim`'s surface is there at barycentrics `(u, v)`: its material's
+    /// alpha mask covers it, or it has none.
+    #[inline]
+    fn covers(&self, prim: u32, u: f32, v: f32) -> bool {
+        if self.masks.is_empty() {
+            return true;
+        }
+        let material = self.triangle_material[prim as usize] as usize;
+        let Some(&Some(mask)) = self.material_mask.get(material) else { return true };
+        let uv = self.triangle_uv.get(prim as usize).map_or(Vec2::ZERO, |corners| interpolate_uv(corners, u, v));
+        self.masks[mask as usize].covers(uv)
+    }
+
     /// The texture coordinates at a hit (zero for spheres and meshes without any).
     #[inline]
     pub fn uv(&self, hit: &Hit) -> Vec2 {
         if hit.part & COPY != 0 {
             return self.copies.uv(hit.part & !COPY, hit).unwrap_or(Vec2::ZERO);
         }
-        self.triangle_uv.get(hit.prim as usize).map_or(Vec2::ZERO, |corners| interpolate_uv(corners, hit))
+        self.triangle_uv.get(hit.prim as usize).map_or(Vec2::ZERO, |corners| interpolate_uv(corners, hit.u, hit.v))
     }
 
     /// Position, unit normal, material and relative offset of a hit in `part`'s object space
@@ -960,8 +985,8 @@ impl Geometry {
 
 /// The texture coordinates at a triangle hit, from its corners'.
 #[inline]
-fn interpolate_uv([a, b, c]: &[Vec2; 3], hit: &Hit) -> Vec2 {
-    *a + (*b - *a) * hit.u + (*c - *a) * hit.v
+fn interpolate_uv([a, b, c]: &[Vec2; 3], u: f32, v: f32) -> Vec2 {
+    *a + (*b - *a) * u + (*c - *a) * v
 }
 
 /// The point at barycentrics `(u, v)` of the triangle `v0, e1, e2` and its unit normal
@@ -990,7 +1015,7 @@ impl Part {
     /// ([`WideBvh::closest_hit_batch`]).
     fn closest_batch(&self, g: &Geometry, k: u32, rays: &[Ray], hits: &mut [Option<Hit>]) {
         let bytes = self.wide.traced_bytes(&self.packed);
-        if self.has_spheres {
+        if self.entry_tests {
             let start = |i: usize| (rays[i], PartLeaves { geometry: g, part: self, best: None });
             self.wide.closest_hit_batch(bytes, rays.len(), start, |i, _, leaves, _| {
                 hits[i] = leaves.best.map(|h| Hit { part: k, ..h })
@@ -1008,7 +1033,7 @@ impl Part {
     /// ([`WideBvh::any_hit_batch`]).
     fn occluded_batch(&self, g: &Geometry, rays: &[Ray], occluded: &mut [bool]) {
         let bytes = self.wide.traced_bytes(&self.packed);
-        if self.has_spheres {
+        if self.entry_tests {
             let start = |i: usize| (rays[i], PartLeaves { geometry: g, part: self, best: None });
             self.wide.any_hit_batch(bytes, rays.len(), start, |i, _, _, hit| occluded[i] = hit);
         } else {
@@ -1033,7 +1058,14 @@ impl Part {
         let probe = &*ray;
         let n_tris = g.triangle_count();
         let hit = if (prim as usize) < n_tris {
-            self.packed.intersect(i, probe).map(|h| Hit { t: h.t, prim, u: h.u, v: h.v, slot: i, part: k })
+            self.packed.intersect(i, probe).filter(|h| g.covers(prim, h.u, h.v)).map(|h| Hit {
+                t: h.t,
+                prim,
+                u: h.u,
+                v: h.v,
+                slot: i,
+                part: k,
+            })
         } else {
             let s = &g.spheres[prim as usize - n_tris].sphere;
             s.intersect(probe).map(|t| Hit { t, prim, u: 0.0, v: 0.0, slot: NO_SLOT, part: k })
@@ -1044,7 +1076,7 @@ impl Part {
     /// The closest hit in this part (number `k`) along `ray`, in its object space.
     #[inline(always)]
     fn intersect(&self, g: &Geometry, k: u32, ray: &Ray) -> Option<Hit> {
-        if !self.has_spheres {
+        if !self.entry_tests {
             // Triangles only: whole leaves at once (4-lane Möller–Trumbore, same bits), the
             // leaf test compiled into the traversal loop.
             return self.wide.closest_triangle_slot(&self.packed, ray).map(|h| Hit {
@@ -1065,26 +1097,14 @@ impl Part {
     /// Whether anything in this part lies along `ray` (object space).
     #[inline(always)]
     fn occluded(&self, g: &Geometry, ray: &Ray) -> bool {
-        if !self.has_spheres {
+        if !self.entry_tests {
             return self.wide.any_triangle(&self.packed, ray);
         }
-        self.wide.any_hit_leaves(ray, |first, count, r| {
-            (first..first + count).any(|i| {
-                let prim = self.wide.prim_indices[i as usize] as usize;
-                let n_tris = g.triangle_count();
-                if prim < n_tris {
-                    self.packed.intersect(i, r).is_some()
-                } else if prim - n_tris < g.spheres.len() {
-                    g.spheres[prim - n_tris].sphere.intersect(r).is_some()
-                } else {
-                    false
-                }
-            })
-        })
+        self.wide.any_hit_visit(ray, &mut PartLeaves { geometry: g, part: self, best: None })
     }
 }
 
-/// The leaf test of a part with spheres among its triangles, as a [`LeafVisitor`]: each
+/// The leaf test of a part with spheres or masked triangles, as a [`LeafVisitor`]: each
 /// entry by [`Part::test_packed`], keeping the closest hit (its `part` is 0: callers set
 /// theirs). As an any-hit test, whether a visit kept a hit.
 struct PartLeaves<'a> {

@@ -10,7 +10,8 @@
 //! a file's animations play together.
 //!
 //! Textures: `TEXCOORD_0` and each material's `baseColorTexture` (an image file inside the
-//! asset's folder, a GLB buffer view or a `data:` URI), with its `KHR_texture_transform`
+//! asset's folder, a GLB buffer view or a `data:` URI; under `alphaMode` `MASK` its alpha
+//! channel is an alpha mask too), with its `KHR_texture_transform`
 //! (offset, rotation, scale) applied to the coordinates of the primitives that use it; glTF's
 //! `v` runs down the image, so it is stored as `1 − v` ([`MeshData::uvs`] follows OBJ: `v = 0`
 //! is the image's bottom).
@@ -635,8 +636,9 @@ fn base_color_transform(material: &::gltf::Material) -> Result<Option<glam::Affi
 
 fn convert_material(material: &::gltf::Material) -> GltfMaterial {
     let pbr = material.pbr_metallic_roughness();
-    let [r, g, b, _] = pbr.base_color_factor();
+    let [r, g, b, a] = pbr.base_color_factor();
     let strength = material.emissive_strength().unwrap_or(1.0);
+    let masked = material.alpha_mode() == ::gltf::material::AlphaMode::Mask;
     GltfMaterial {
         base_color: [r, g, b],
         base_color_texture: None,
@@ -645,6 +647,7 @@ fn convert_material(material: &::gltf::Material) -> GltfMaterial {
         emissive: material.emissive_factor().map(|e| e * strength),
         transmission: material.transmission().map_or(0.0, |t| t.transmission_factor()),
         ior: material.ior().unwrap_or(1.5),
+        alpha_threshold: masked.then(|| material.alpha_cutoff().unwrap_or(0.5) / a),
     }
 }
 

@@ -22,6 +22,9 @@ pub struct MtlEntry {
     pub illum: Option<u32>,
     /// The diffuse colour texture (`map_Kd`), resolved against the MTL file's folder.
     pub map_kd: Option<std::path::PathBuf>,
+    /// The alpha mask (`map_d`: the surface is where the image's value is at least one half),
+    /// resolved against the MTL file's folder.
+    pub map_d: Option<std::path::PathBuf>,
 }
 
 /// Where a texture's image is.
@@ -58,6 +61,9 @@ pub struct GltfMaterial {
     pub transmission: f32,
     /// `KHR_materials_ior` (1.5 if absent).
     pub ior: f32,
+    /// `alphaMode` `MASK`: the surface is there where the base-colour texture's alpha reaches
+    /// this value (the alpha cutoff over the base colour factor's alpha).
+    pub alpha_threshold: Option<f32>,
 }
 
 /// What a group's material looks like in the source file.

@@ -7,8 +7,8 @@
 //! lines and points are ignored: the renderer flat-shades and groups by material only.
 //!
 //! Limits: no line continuation (`\`), no free-form geometry, file names without spaces in
-//! `mtllib`. From MTL files only `Kd Ks Ke Tf Ns Ni d Tr illum map_Kd` are read (see
-//! [`MtlEntry`]); `map_Kd` options (`-s`, `-o`, ...) are skipped, its file is the last word.
+//! `mtllib`. From MTL files only `Kd Ks Ke Tf Ns Ni d Tr illum map_Kd map_d` are read (see
+//! [`MtlEntry`]); map options (`-s`, `-o`, ...) are skipped, the file is the last word.
 
 use super::{check_finite, finish, Location, MeshData, MtlEntry, MtlLibrary, SourceMaterial};
 use crate::error::LoadError;
@@ -343,6 +343,7 @@ impl MtlBuilder {
             "Tr" => self.tr = Some(values.number()?),
             "illum" => entry.illum = Some(values.integer()?),
             "map_Kd" => entry.map_kd = Some(values.file()?),
+            "map_d" => entry.map_d = Some(values.file()?),
             _ => {} // Ka, other map_*, bump, ...: not used by the renderer.
         }
         Ok(())
@@ -499,7 +500,7 @@ mod tests {
         let library = parse_mtl(
             Path::new("test.mtl"),
             b"Kd 9 9 9\nnewmtl glass\n  Kd 0.1 0.2 0.3 # note\n Ks 0.5\n Ke 1 2 3\n Tf 0.9 0.9 0.9\n\
-              Ns 100\n Ni 1.5\n Tr 0.25\n illum 4\n Ka 1 1 1\n map_Kd tex.png\n\
+              Ns 100\n Ni 1.5\n Tr 0.25\n illum 4\n Ka 1 1 1\n map_Kd tex.png\n map_d -imfchan m leaf.png\n\
               newmtl two words\n d -halo 0.5\n Tr 0.9\n",
         )
         .unwrap();
@@ -511,6 +512,7 @@ mod tests {
         assert_eq!((glass.ns, glass.ni, glass.d, glass.illum), (Some(100.0), Some(1.5), Some(0.75), Some(4)));
         assert_eq!(library["two words"].d, Some(0.5));
         assert_eq!(glass.map_kd, Some(PathBuf::from("tex.png")), "relative to the MTL's folder");
+        assert_eq!(glass.map_d, Some(PathBuf::from("leaf.png")), "its options skipped");
         let error = parse_mtl(Path::new("test.mtl"), b"newmtl a\nKd 1 x 1\n").unwrap_err();
         assert_eq!(error.to_string(), "test.mtl:2: bad number `x`");
     }

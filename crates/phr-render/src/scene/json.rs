@@ -564,8 +564,8 @@ impl SceneBuilder<'_> {
     }
 
     /// Turns the meshes object `i` has just added (from number `meshes` on) into one mesh
-    /// placed by each of `instances`. Copies of an emitting mesh become ordinary triangles
-    /// instead (light sampling picks emitting triangles one by one, where they are), at most
+    /// placed by each of `instances`. Copies of a mesh that emits or has an alpha mask
+    /// become ordinary triangles instead ([`Scene::written_out_for`]), at most
     /// [`MAX_COPIED_TRIANGLES`] of them.
     fn instance(&mut self, i: usize, instances: &[TransformFile], meshes: usize) -> Result<(), LoadError> {
         let path = self.path;
@@ -585,15 +585,15 @@ impl SceneBuilder<'_> {
             })
             .collect::<Result<Vec<_>, _>>()?;
         let instanced = InstancedMesh { mesh: merge_meshes(self.scene.meshes.drain(meshes..)), copies };
-        let emits = instanced.mesh.triangle_material.iter().any(|&m| self.scene.materials[m as usize].is_emissive());
-        if !emits {
+        if !instanced.mesh.triangle_material.iter().any(|&m| self.scene.written_out_for(m)) {
             self.scene.instanced.push(instanced);
             return Ok(());
         }
         let (copies, triangles) = (instanced.copies.len(), instanced.mesh.triangles.len());
         if triangles.saturating_mul(copies) > MAX_COPIED_TRIANGLES {
             return Err(bad(format!(
-                "{copies} copies of {triangles} emitting triangles exceed {MAX_COPIED_TRIANGLES} (emitters are copied, not instanced)"
+                "{copies} copies of {triangles} emitting or alpha-masked triangles exceed {MAX_COPIED_TRIANGLES} \
+                 (emitters and masks are copied, not instanced)"
             )));
         }
         self.scene.meshes.extend(instanced.written_out());

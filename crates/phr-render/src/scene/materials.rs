@@ -112,6 +112,7 @@ mod tests {
             emissive: [0.0; 3],
             transmission: 0.0,
             ior: 1.5,
+            alpha_threshold: None,
         };
         assert_eq!(map_gltf(&base), Material::Lambertian { albedo: Vec3::new(0.2, 0.3, 0.4) });
         let metal = GltfMaterial { metallic: 1.0, ..base.clone() };

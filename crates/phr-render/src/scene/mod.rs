@@ -12,7 +12,7 @@ pub mod materials;
 use crate::camera::CameraDesc;
 use crate::material::Material;
 use crate::motion::ObjectAnimation;
-use crate::texture::Texture;
+use crate::texture::{AlphaMask, Texture};
 use glam::{Vec2, Vec3};
 use phr_bvh::instance::Instance;
 use phr_bvh::sphere::Sphere;
@@ -176,6 +176,14 @@ pub struct Scene {
     /// For each material, its colour texture: a Lambertian surface's albedo is its `albedo`
     /// times the texture's colour at the hit's texture coordinates.
     pub material_texture: Vec<Option<u32>>,
+    /// Alpha masks (MTL `map_d`, glTF `alphaMode` `MASK`), each loaded once however many
+    /// materials use it.
+    pub masks: Vec<AlphaMask>,
+    /// The image each mask came from, with its threshold.
+    pub mask_files: Vec<String>,
+    /// For each material, its alpha mask: rays pass through its surfaces where the mask does
+    /// not cover them ([`crate::geometry::Geometry`] tests it).
+    pub material_mask: Vec<Option<u32>>,
 }
 
 impl Default for Scene {
@@ -193,6 +201,9 @@ impl Default for Scene {
             textures: Vec::new(),
             texture_files: Vec::new(),
             material_texture: Vec::new(),
+            masks: Vec::new(),
+            mask_files: Vec::new(),
+            material_mask: Vec::new(),
         }
     }
 }
@@ -203,14 +214,23 @@ impl Scene {
         self.materials.push(m);
         self.material_names.push(name.into());
         self.material_texture.push(None);
+        self.material_mask.push(None);
         (self.materials.len() - 1) as u32
+    }
+
+    /// Whether the copies of a mesh placed many times cannot keep `material` and must be
+    /// written out triangle by triangle: emitters (light sampling picks each one) and alpha
+    /// masks (the copies' leaf test does not look at them).
+    pub fn written_out_for(&self, material: u32) -> bool {
+        self.materials[material as usize].is_emissive() || self.material_mask[material as usize].is_some()
     }
 
     /// Adds the material a mesh file describes, mapped by `mapping`, with its colour texture
     /// when it maps to a Lambertian surface: an MTL `map_Kd` replaces `Kd` (as Blender's and
     /// most OBJ importers do), a glTF `baseColorTexture` is multiplied by the base colour (as
-    /// the specification says). Each image is read once per scene. A texture that cannot be
-    /// read is an error naming the material and the image.
+    /// the specification says). With its alpha mask, whatever it maps to: an MTL `map_d`, or
+    /// a glTF `alphaMode` `MASK` on the base-colour texture's alpha. Each image is read once
+    /// per scene. A texture that cannot be read is an error naming the material and the image.
     pub fn add_source_material(
         &mut self,
         name: &str,
@@ -227,7 +247,21 @@ impl Scene {
             (SourceMaterial::Gltf(g), Material::Lambertian { .. }) => g.base_color_texture.clone(),
             _ => None,
         };
-        self.add_textured_material(name, material, image)
+        let index = self.add_textured_material(name, material, image)?;
+        // MTL `map_d` (cut at one half), or glTF `alphaMode` `MASK` on the base colour's alpha.
+        let mask = match source {
+            SourceMaterial::Mtl(m) => m.map_d.clone().map(|file| (ImageSource::File(file), 0.5)),
+            SourceMaterial::Gltf(g) => g.base_color_texture.clone().zip(g.alpha_threshold),
+            SourceMaterial::None => None,
+        };
+        if let Some((image, threshold)) = mask {
+            let key = format!("{} (cut at {threshold})", image.name());
+            let load = || Ok(AlphaMask::load(&image)?.with_threshold(threshold));
+            let mask = intern(&mut self.mask_files, &mut self.masks, key, load)
+                .map_err(|e| named(&image, &format!("alpha mask of material \"{name}\""), e))?;
+            self.material_mask[index as usize] = Some(mask);
+        }
+        Ok(index)
     }
 
     /// Adds a material with its colour texture, if it has one: `image` is read once per scene
@@ -239,12 +273,7 @@ impl Scene {
         image: Option<crate::load::ImageSource>,
     ) -> Result<u32, crate::error::LoadError> {
         let texture = image
-            .map(|image| {
-                self.texture(&image).map_err(|e| {
-                    let message = format!("texture of material \"{name}\": {}", e.message);
-                    crate::error::LoadError::new(image.name(), message)
-                })
-            })
+            .map(|image| self.texture(&image).map_err(|e| named(&image, &format!("texture of material \"{name}\""), e)))
             .transpose()?;
         let index = self.add_material(name, material);
         self.material_texture[index as usize] = texture;
@@ -253,13 +282,7 @@ impl Scene {
 
     /// The texture of `image` (read once: later calls share it).
     pub fn texture(&mut self, image: &crate::load::ImageSource) -> Result<u32, crate::error::LoadError> {
-        let name = image.name();
-        if let Some(i) = self.texture_files.iter().position(|f| *f == name) {
-            return Ok(i as u32);
-        }
-        self.textures.push(Texture::load(image)?);
-        self.texture_files.push(name);
-        Ok((self.textures.len() - 1) as u32)
+        intern(&mut self.texture_files, &mut self.textures, image.name(), || Texture::load(image))
     }
 
     /// Writes every copy of [`Scene::instanced`] out as a mesh of its own, in the world: for
@@ -272,8 +295,8 @@ impl Scene {
 
     /// Places the meshes `data` keeps apart because several glTF nodes place them
     /// ([`crate::load::MeshData::shared`]) as [`InstancedMesh`]es, their groups given
-    /// materials by `group_material`. Those that emit light are written out into `data`
-    /// instead (light sampling finds emitting triangles where they are). Placements that
+    /// materials by `group_material`. Those that emit light or have an alpha mask are written out
+    /// into `data` instead ([`Scene::written_out_for`]). Placements that
     /// cannot be inverted (a node scaled to zero, which hides the mesh) are left out.
     pub fn add_shared_meshes(
         &mut self,
@@ -284,12 +307,9 @@ impl Scene {
     ) -> Result<(), crate::error::LoadError> {
         let mut i = 0;
         while i < data.shared.len() {
-            let materials = &self.materials;
-            let emits = data.shared[i]
-                .triangle_group
-                .iter()
-                .any(|&g| materials[group_material[g as usize] as usize].is_emissive());
-            if emits {
+            let written_out =
+                data.shared[i].triangle_group.iter().any(|&g| self.written_out_for(group_material[g as usize]));
+            if written_out {
                 data.flatten_shared_mesh(path, i)?;
             } else {
                 i += 1;
@@ -418,6 +438,27 @@ impl Scene {
         }
         Ok(())
     }
+}
+
+/// The index of the item called `name` in `items`, made by `load` at its first use (`files`
+/// names the items made so far).
+fn intern<T>(
+    files: &mut Vec<String>,
+    items: &mut Vec<T>,
+    name: String,
+    load: impl FnOnce() -> Result<T, crate::error::LoadError>,
+) -> Result<u32, crate::error::LoadError> {
+    if let Some(i) = files.iter().position(|f| *f == name) {
+        return Ok(i as u32);
+    }
+    items.push(load()?);
+    files.push(name);
+    Ok((items.len() - 1) as u32)
+}
+
+/// A load error of `image`, said to be the `role` it plays (`texture of material "m"`).
+fn named(image: &crate::load::ImageSource, role: &str, e: crate::error::LoadError) -> crate::error::LoadError {
+    crate::error::LoadError::new(image.name(), format!("{role}: {}", e.message))
 }
 
 /// Opens what the user named: a scene file (`.json`) or a mesh file (`.obj`, `.ply`,

@@ -19,12 +19,11 @@ reference renderer in ../shared/reference/tools), which knows no textures; only 
 and their textured BSDFs are made here.
 """
 
-import json
 import os
 
 import numpy as np
 
-from reference_run import HERE, mitsuba_dict, options, render_and_write, rr
+from reference_run import HERE, quad_mesh, render_meshes, rr, write_quads
 
 # Three quads: (name, corners counter-clockwise seen from the inside, uv scale).
 SURFACES = [
@@ -32,7 +31,6 @@ SURFACES = [
     ("back", [[-1, 0, -1], [1, 0, -1], [1, 2, -1], [-1, 2, -1]], 1.0),
     ("left", [[-1, 0, 1], [-1, 0, -1], [-1, 2, -1], [-1, 2, 1]], 1.0),
 ]
-CORNER_UV = [[0, 0], [1, 0], [1, 1], [0, 1]]
 
 SCENE = {
     "description": "Textures against Mitsuba 3's bitmap texture: a floor (the texture tiled 3 times, "
@@ -62,50 +60,17 @@ def texture():
 
 def write_files():
     rr.write_png(os.path.join(HERE, "textured.png"), texture().astype(np.float32) / 255.0, gamma="linear")
-    lines = ["mtllib textured.mtl"]
-    mtl = []
-    for k, (name, corners, scale) in enumerate(SURFACES):
-        lines += [f"v {x} {y} {z}" for x, y, z in corners]
-        lines += [f"vt {u * scale} {v * scale}" for u, v in CORNER_UV]
-        i = 4 * k
-        lines += [f"usemtl {name}", f"f {i + 1}/{i + 1} {i + 2}/{i + 2} {i + 3}/{i + 3} {i + 4}/{i + 4}"]
-        mtl += [f"newmtl {name}", "Kd 0.5 0.5 0.5", "map_Kd textured.png", ""]
-    with open(os.path.join(HERE, "textured.obj"), "w") as f:
-        f.write("\n".join(lines) + "\n")
-    with open(os.path.join(HERE, "textured.mtl"), "w") as f:
-        f.write("\n".join(mtl))
-    with open(os.path.join(HERE, "textured.json"), "w") as f:
-        json.dump(SCENE, f, indent=2)
-        f.write("\n")
+    entry = ["Kd 0.5 0.5 0.5", "map_Kd textured.png"]
+    write_quads("textured", [(name, corners, scale, entry) for name, corners, scale in SURFACES], SCENE)
 
 
 def textured_meshes(mi):
-    """The three quads as Mitsuba meshes with the OBJ's texture coordinates; Mitsuba's bitmap
-    has v = 0 at the image's top, OBJ at its bottom: v is flipped, as Mitsuba's OBJ reader
-    does."""
-    shapes = {}
-    for name, corners, scale in SURFACES:
-        mesh = mi.Mesh(name, 4, 2, has_vertex_texcoords=True)
-        params = mi.traverse(mesh)
-        params["vertex_positions"] = np.array(corners, dtype=np.float32).ravel()
-        params["faces"] = np.array([0, 1, 2, 0, 2, 3], dtype=np.uint32)
-        uv = np.array([[u * scale, 1.0 - v * scale] for u, v in CORNER_UV], dtype=np.float32)
-        params["vertex_texcoords"] = uv.ravel()
-        params.update()
-        bitmap = {"type": "bitmap", "filename": os.path.join(HERE, "textured.png"),
-                  "filter_type": "bilinear", "wrap_mode": "repeat", "raw": False}
-        mesh.set_bsdf(mi.load_dict({"type": "diffuse", "reflectance": bitmap}))
-        shapes[name] = mesh
-    return shapes
-
-
-def main():
-    opts = options(__doc__, SCENE["spp"])
-    write_files()
-    variant, mi, d = mitsuba_dict(opts, dict(SCENE, objects=[]), "path")
-    d.update(textured_meshes(mi))
-    render_and_write(d, opts, "textured", variant, "path", "make_textured.py")
+    """The three quads as Mitsuba meshes with the OBJ's texture coordinates."""
+    bitmap = {"type": "bitmap", "filename": os.path.join(HERE, "textured.png"),
+              "filter_type": "bilinear", "wrap_mode": "repeat", "raw": False}
+    bsdf = {"type": "diffuse", "reflectance": bitmap}
+    return {name: quad_mesh(mi, name, corners, scale, bsdf) for name, corners, scale in SURFACES}
 
 
 if __name__ == "__main__":
-    main()
+    render_meshes(__doc__, SCENE, "textured", write_files, textured_meshes)
