@@ -3,7 +3,8 @@
 //! loads must also build, collapse and render a tiny frame without one.
 //!
 //! CI runs a short smoke with a fixed seed. A long run, e.g. ten minutes a target:
-//! `PHR_FUZZ_SECONDS=600 cargo test --release -p phr-render --test fuzz_loaders -- --nocapture`.
+//! `PHR_FUZZ_SECONDS=600 cargo test --release -p phr-render --test fuzz_loaders -- --nocapture`
+//! (`PHR_FUZZ_TARGETS=gltf,scene` for some of the targets: obj, ply, gltf, gzip, scene, mtl).
 //! Inputs that panic are written to `target/tmp/fuzz-crashes/`; once fixed, they belong in
 //! `tests/bad_inputs/` (see `bad_inputs.rs`), where every bad file is checked for good.
 
@@ -46,6 +47,11 @@ const DICTIONARY: &[&[u8]] = &[
     b"Ke ",
     b"Ni ",
     b"illum ",
+    b"map_d ",
+    b"map_Kd ",
+    b"\"alphaMode\": \"MASK\"",
+    b"\"KHR_texture_transform\": {\"rotation\": 1e39}",
+    b"\"texCoord\": 1",
     b"/",
     b"//",
     b"element vertex ",
@@ -97,7 +103,7 @@ fn scene_target(bytes: &[u8]) {
 
 #[test]
 fn seeds_load() {
-    for name in ["cube.obj", "quad_ascii.ply", "quad_little.ply", "quad_big.ply", "tri.gltf", "tri.glb"] {
+    for name in ["cube.obj", "quad_ascii.ply", "quad_little.ply", "quad_big.ply", "tri.gltf", "tri.glb", "tex.gltf"] {
         let path = seeds_dir().join(name);
         let mesh = parse_mesh(&path, &seed(name)).unwrap_or_else(|e| panic!("{e}"));
         assert!(!mesh.triangles.is_empty(), "{name}");
@@ -113,7 +119,12 @@ fn loaders_survive_mutated_inputs() {
     let dir = seeds_dir();
     let mut report = Vec::new();
     let mut crashes = Vec::new();
+    // `PHR_FUZZ_TARGETS=gltf,scene` runs those targets alone.
+    let chosen = std::env::var("PHR_FUZZ_TARGETS").ok();
     let mut run = |name: &str, seeds: Vec<Vec<u8>>, target: &(dyn Fn(&[u8]) + std::panic::RefUnwindSafe)| {
+        if chosen.as_ref().is_some_and(|c| !c.split(',').any(|t| t == name)) {
+            return;
+        }
         let (runs, found) = mutate::fuzz(name, &seeds, DICTIONARY, budget, &crash_dir, target);
         report.push(format!("{name}: {runs} inputs"));
         crashes.extend(found);
@@ -122,7 +133,7 @@ fn loaders_survive_mutated_inputs() {
     run("ply", vec![seed("quad_ascii.ply"), seed("quad_little.ply"), seed("quad_big.ply")], &|b| {
         mesh_target(&dir.join("quad.ply"), b)
     });
-    run("gltf", vec![seed("tri.gltf"), seed("tri.glb")], &|b| mesh_target(&dir.join("tri.gltf"), b));
+    run("gltf", vec![seed("tri.gltf"), seed("tri.glb"), seed("tex.gltf")], &|b| mesh_target(&dir.join("tri.gltf"), b));
     run("gzip", vec![gzip(&seed("cube.obj")), gzip(&seed("quad_little.ply"))], &|b| {
         mesh_target(&dir.join("mesh.obj.gz"), b);
         mesh_target(&dir.join("mesh.ply.gz"), b);

@@ -181,6 +181,7 @@ fn read_document(bytes: &[u8]) -> Result<(Document, Option<Vec<u8>>), String> {
     let json = document.into_json();
     check_position_accessors(&json)?;
     check_animation_targets(&json)?;
+    check_image_sources(&json)?;
     let document = Document::from_json(json).map_err(|e| e.to_string())?;
     Ok((document, blob))
 }
@@ -222,6 +223,21 @@ fn check_animation_targets(json: &::gltf::json::Root) -> Result<(), String> {
             if target.node.value() >= json.nodes.len() {
                 return Err(format!("animation {a}, channel {c}: target node out of range"));
             }
+        }
+    }
+    Ok(())
+}
+
+/// The `gltf` crate reads an image's source by unwrapping its `uri`, or its `bufferView` and
+/// `mimeType` (gltf 1.4), which its validation does not require; found by the loader fuzz
+/// test. The specification wants exactly one of `uri` and `bufferView`, and a `mimeType` with
+/// the latter.
+fn check_image_sources(json: &::gltf::json::Root) -> Result<(), String> {
+    for (i, image) in json.images.iter().enumerate() {
+        match (&image.uri, &image.buffer_view, &image.mime_type) {
+            (Some(_), None, _) | (None, Some(_), Some(_)) => {}
+            (None, Some(_), None) => return Err(format!("image {i}: a bufferView without a mimeType")),
+            _ => return Err(format!("image {i}: needs exactly one of uri and bufferView")),
         }
     }
     Ok(())
