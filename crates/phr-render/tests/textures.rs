@@ -162,6 +162,30 @@ fn a_gltf_texture_transform_moves_the_texels() {
     assert!(error.contains("quad.gltf") && error.contains("KHR_texture_transform"), "{error}");
 }
 
+/// glTF `alphaMode` `MASK` without a texture: the base colour factor's alpha alone decides,
+/// so below the cutoff the whole quad is gone and the sky shows; above it, the quad.
+#[test]
+fn a_gltf_mask_without_texture_keeps_or_drops_the_whole_surface() {
+    let dir = folder("gltf-mask-factor");
+    for (alpha, gone) in [(0.8, false), (0.2, true)] {
+        let scene_file = write_gltf_scene(&dir, "", r#", "alphaMode": "MASK""#);
+        let json = std::fs::read_to_string(dir.join("quad.gltf"))
+            .unwrap()
+            .replace(r#""baseColorTexture": {"index": 0}"#, r#""roughnessFactor": 1"#)
+            .replace("[0.5, 0.5, 0.5, 1]", &format!("[0.5, 0.5, 0.5, {alpha}]"));
+        std::fs::write(dir.join("quad.gltf"), json).unwrap();
+        let scene = load_scene(&scene_file).unwrap();
+        let mut geometry = Geometry::new(&scene);
+        geometry.build(&Builder::default());
+        let renderer = Renderer::new(&scene, &geometry, &scene.view(None).unwrap(), &scene.settings, None);
+        let (image, _) = renderer.render_frame(0);
+        let expected = if gone { Vec3::ONE } else { Vec3::splat(0.5) };
+        for pixel in [image[10 * 64 + 10], image[32 * 64 + 32], image[54 * 64 + 54]] {
+            assert!((pixel - expected).abs().max_element() < 0.02, "factor alpha {alpha}: {pixel}");
+        }
+    }
+}
+
 /// Writes the textured quad of [`write_scene`] as `quad.gltf`, with `info` added to its
 /// `baseColorTexture` object and `material` to its material, and a scene file `gltf.json`
 /// showing it; returns the scene file.

@@ -251,7 +251,17 @@ impl Scene {
         // MTL `map_d` (cut at one half), or glTF `alphaMode` `MASK` on the base colour's alpha.
         let mask = match source {
             SourceMaterial::Mtl(m) => m.map_d.clone().map(|file| (ImageSource::File(file), 0.5)),
-            SourceMaterial::Gltf(g) => g.base_color_texture.clone().zip(g.alpha_threshold),
+            SourceMaterial::Gltf(g) => match (&g.base_color_texture, g.alpha_threshold) {
+                // Without a texture the factor's alpha alone decides: a whole surface gone.
+                (None, Some(threshold)) if threshold > 1.0 => {
+                    let gone = AlphaMask::new(1, 1, vec![255]).with_threshold(threshold);
+                    let key = format!("{name}: base colour alpha below the cutoff");
+                    let mask = intern(&mut self.mask_files, &mut self.masks, key, || Ok(gone))?;
+                    self.material_mask[index as usize] = Some(mask);
+                    None
+                }
+                (texture, threshold) => texture.clone().zip(threshold),
+            },
             SourceMaterial::None => None,
         };
         if let Some((image, threshold)) = mask {
