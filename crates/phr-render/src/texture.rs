@@ -63,9 +63,7 @@ impl Texture {
     /// Linear colour of texel `(x, y)` (from the top left), coordinates wrapped.
     #[inline]
     fn texel(&self, x: i64, y: i64) -> Vec3 {
-        let x = x.rem_euclid(self.width as i64) as usize;
-        let y = y.rem_euclid(self.height as i64) as usize;
-        let [r, g, b] = self.texels[y * self.width as usize + x];
+        let [r, g, b] = self.texels[wrapped(self.width, self.height, x, y)];
         let table = srgb_table();
         Vec3::new(table[r as usize], table[g as usize], table[b as usize])
     }
@@ -94,6 +92,15 @@ fn read_image(source: &ImageSource, what: &str) -> Result<image::DynamicImage, L
     };
     use image::ImageFormat::{Jpeg, Png};
     crate::load::input::decode_image(bytes, &source.name(), what, &[Png, Jpeg])
+}
+
+/// The row-major index of texel `(x, y)` (from the top left) of a `width × height` image,
+/// coordinates wrapped.
+#[inline]
+fn wrapped(width: u32, height: u32, x: i64, y: i64) -> usize {
+    let x = x.rem_euclid(i64::from(width)) as usize;
+    let y = y.rem_euclid(i64::from(height)) as usize;
+    y * width as usize + x
 }
 
 /// The bilinear footprint of `uv` on a `width × height` image with repeating coordinates: the
@@ -161,9 +168,7 @@ impl AlphaMask {
 
     #[inline]
     fn value(&self, x: i64, y: i64) -> f32 {
-        let x = x.rem_euclid(self.width as i64) as usize;
-        let y = y.rem_euclid(self.height as i64) as usize;
-        f32::from(self.coverage[y * self.width as usize + x]) / 255.0
+        f32::from(self.coverage[wrapped(self.width, self.height, x, y)]) / 255.0
     }
 
     /// Whether the surface is there at texture coordinates `uv`: the bilinearly filtered

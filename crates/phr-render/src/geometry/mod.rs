@@ -526,18 +526,30 @@ impl Geometry {
     /// Packs part `k`'s triangles in its wide tree's leaf order (into the previous frame's
     /// memory: in a dynamic scene this runs every frame).
     fn pack_part(&mut self, k: usize) {
-        self.scene_triangles();
-        let part = &mut self.parts[k];
-        part.packed.repack(&part.wide.prim_indices, &self.triangles);
-        let n_tris = self.triangles.len() as u32;
-        let (material, mask) = (&self.triangle_material, &self.material_mask);
-        let masked = |p: u32| p < n_tris && mask.get(material[p as usize] as usize).is_some_and(Option::is_some);
-        part.entry_tests = match &part.prims {
-            Some(prims) => {
-                prims.last().is_some_and(|&p| p >= n_tris) || (!mask.is_empty() && prims.iter().any(|&p| masked(p)))
-            }
-            None => !self.spheres.is_empty() || (!mask.is_empty() && (0..n_tris).any(masked)),
-        };
+        let mut packed = std::mem::take(&mut self.parts[k].packed);
+        packed.repack(&self.parts[k].wide.prim_indices, self.scene_triangles());
+        self.parts[k].packed = packed;
+        self.parts[k].entry_tests = self.needs_entry_tests(k);
+    }
+
+    /// Whether part `k` holds spheres or triangles with an alpha mask ([`Part::entry_tests`]).
+    fn needs_entry_tests(&self, k: usize) -> bool {
+        let n_tris = self.triangle_count() as u32;
+        let masked = |p: u32| self.mask_of(p).is_some();
+        let masks = !self.masks.is_empty();
+        match &self.parts[k].prims {
+            Some(prims) => prims.last().is_some_and(|&p| p >= n_tris) || (masks && prims.iter().any(|&p| masked(p))),
+            None => !self.spheres.is_empty() || (masks && (0..n_tris).any(masked)),
+        }
+    }
+
+    /// The alpha mask of primitive `prim`'s material (`None` for unmasked triangles and for
+    /// spheres).
+    #[inline]
+    fn mask_of(&self, prim: u32) -> Option<&AlphaMask> {
+        let material = *self.triangle_material.get(prim as usize)?;
+        let mask = (*self.material_mask.get(material as usize)?)?;
+        Some(&self.masks[mask as usize])
     }
 
     /// Gives the top level part `k`'s new box (for culling; the top-level tree over the
@@ -943,10 +955,8 @@ impl Geometry {
         if self.masks.is_empty() {
             return true;
         }
-        let material = self.triangle_material[prim as usize] as usize;
-        let Some(&Some(mask)) = self.material_mask.get(material) else { return true };
-        let uv = self.triangle_uv.get(prim as usize).map_or(Vec2::ZERO, |corners| interpolate_uv(corners, u, v));
-        self.masks[mask as usize].covers(uv)
+        let Some(mask) = self.mask_of(prim) else { return true };
+        mask.covers(self.triangle_uv.get(prim as usize).map_or(Vec2::ZERO, |corners| interpolate_uv(corners, u, v)))
     }
 
     /// The texture coordinates at a hit (zero for spheres and meshes without any).

@@ -250,28 +250,40 @@ impl Scene {
         let index = self.add_textured_material(name, material, image)?;
         // MTL `map_d` (cut at one half), or glTF `alphaMode` `MASK` on the base colour's alpha.
         let mask = match source {
-            SourceMaterial::Mtl(m) => m.map_d.clone().map(|file| (ImageSource::File(file), 0.5)),
-            SourceMaterial::Gltf(g) => match (&g.base_color_texture, g.alpha_threshold) {
-                // Without a texture the factor's alpha alone decides: a whole surface gone.
-                (None, Some(threshold)) if threshold > 1.0 => {
-                    let gone = AlphaMask::new(1, 1, vec![255]).with_threshold(threshold);
-                    let key = format!("{name}: base colour alpha below the cutoff");
-                    let mask = intern(&mut self.mask_files, &mut self.masks, key, || Ok(gone))?;
-                    self.material_mask[index as usize] = Some(mask);
-                    None
-                }
-                (texture, threshold) => texture.clone().zip(threshold),
-            },
+            SourceMaterial::Mtl(m) => m.map_d.as_ref().map(|file| (Some(ImageSource::File(file.clone())), 0.5)),
+            SourceMaterial::Gltf(g) => g.alpha_threshold.map(|threshold| (g.base_color_texture.clone(), threshold)),
             SourceMaterial::None => None,
         };
         if let Some((image, threshold)) = mask {
-            let key = format!("{} (cut at {threshold})", image.name());
-            let load = || Ok(AlphaMask::load(&image)?.with_threshold(threshold));
-            let mask = intern(&mut self.mask_files, &mut self.masks, key, load)
-                .map_err(|e| named(&image, &format!("alpha mask of material \"{name}\""), e))?;
-            self.material_mask[index as usize] = Some(mask);
+            self.material_mask[index as usize] = self.alpha_mask(name, image, threshold)?;
         }
         Ok(index)
+    }
+
+    /// The mask of material `name` (loaded once per image and threshold): `image`'s coverage
+    /// cut at `threshold`; without an image, a coverage of one everywhere, so that the whole
+    /// surface is there (no mask: `None`) or, for a threshold above one, gone.
+    fn alpha_mask(
+        &mut self,
+        name: &str,
+        image: Option<crate::load::ImageSource>,
+        threshold: f32,
+    ) -> Result<Option<u32>, crate::error::LoadError> {
+        let (masks, files) = (&mut self.masks, &mut self.mask_files);
+        match image {
+            Some(image) => {
+                let key = format!("{} (cut at {threshold})", image.name());
+                let load = || Ok(AlphaMask::load(&image)?.with_threshold(threshold));
+                let mask = intern(files, masks, key, load)
+                    .map_err(|e| named(&image, &format!("alpha mask of material \"{name}\""), e))?;
+                Ok(Some(mask))
+            }
+            None if threshold > 1.0 => {
+                let gone = AlphaMask::new(1, 1, vec![255]).with_threshold(threshold);
+                intern(files, masks, format!("{name}: no coverage reaches {threshold}"), || Ok(gone)).map(Some)
+            }
+            None => Ok(None),
+        }
     }
 
     /// Adds a material with its colour texture, if it has one: `image` is read once per scene
