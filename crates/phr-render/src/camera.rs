@@ -68,7 +68,24 @@ impl Camera {
     }
 }
 
+/// A camera's rays in closed form, for tracers that generate them elsewhere (the GPU's
+/// kernel): the ray through image point `(x, y)` leaves `origin` along
+/// `forward + sx · horizontal − sy · vertical`, normalised, with `sx = 2x / width − 1` and
+/// `sy = 2y / height − 1`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraBasis {
+    pub origin: Vec3,
+    pub forward: Vec3,
+    pub horizontal: Vec3,
+    pub vertical: Vec3,
+}
+
 impl Camera {
+    /// What [`Camera::ray`] computes its rays from.
+    pub fn basis(&self) -> CameraBasis {
+        CameraBasis { origin: self.origin, forward: self.forward, horizontal: self.horizontal, vertical: self.vertical }
+    }
+
     /// Where `point` appears in the image: continuous pixel coordinates as [`Camera::ray`]
     /// takes them (`None` behind the camera). The inverse of `ray`.
     pub fn project(&self, point: Vec3) -> Option<(f32, f32)> {

@@ -16,7 +16,7 @@
 //! the variance of their own mean, as the tool's README asks. The CI variant renders each
 //! scene with 256 samples per pixel; `--ignored` runs the README's recommended 1024. The tool
 //! needs Python 3 with numpy and OpenEXR: where `python3` lacks them, the tests make a virtual
-//! environment with both under the target folder, once (see [`python`]).
+//! environment with both under the target folder, once (see `support/compare_images.rs`).
 
 use phr_bvh::Builder;
 use phr_render::film::Film;
@@ -25,44 +25,11 @@ use phr_render::lights::LightSet;
 use phr_render::output::write_image;
 use phr_render::render::Renderer;
 use phr_render::scene::load_scene;
-use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::sync::OnceLock;
+use std::path::PathBuf;
 
-fn shared() -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared"))
-}
-
-/// A Python that can run the comparison tool: `python3` if it imports numpy and OpenEXR, else
-/// the one of a virtual environment made for it under the target folder (the first test that
-/// needs it creates it with `python3 -m venv` and pip; later runs reuse it). Panics, saying
-/// what to install, when neither works: the comparison is never skipped.
-fn python() -> &'static Path {
-    static PYTHON: OnceLock<PathBuf> = OnceLock::new();
-    PYTHON.get_or_init(|| {
-        let ready = |python: &Path| {
-            Command::new(python).args(["-c", "import numpy, OpenEXR"]).output().is_ok_and(|o| o.status.success())
-        };
-        let system = PathBuf::from("python3");
-        if ready(&system) {
-            return system;
-        }
-        let venv = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("compare-images-venv");
-        let venv_python = venv.join("bin/python3");
-        if !ready(&venv_python) {
-            let run = |cmd: &mut Command| cmd.status().is_ok_and(|s| s.success());
-            let made = run(Command::new("python3").arg("-m").arg("venv").arg(&venv))
-                && run(Command::new(&venv_python).args(["-m", "pip", "install", "--quiet", "numpy", "OpenEXR"]));
-            assert!(
-                made && ready(&venv_python),
-                "the image comparison needs Python 3 with numpy and OpenEXR, and making a virtual environment \
-                 with them in {} failed: install them (`python3 -m pip install numpy OpenEXR`) or the venv module",
-                venv.display()
-            );
-        }
-        venv_python
-    })
-}
+#[path = "support/compare_images.rs"]
+mod compare_images;
+use compare_images::{compare, shared, Noise};
 
 /// A scene and its Mitsuba reference image (`NAME.exr`, with `NAME_var.exr` and `NAME.json`
 /// next to it, as `render_reference.py` writes them).
@@ -117,20 +84,17 @@ fn check_with(reference: &Reference, spp: u32, estimator: Estimator) {
     let out = std::env::temp_dir().join(format!("phr-ref-{name}-{estimator:?}-{}.pfm", std::process::id()));
     let variance = out.with_extension("var.pfm");
     write_image(&out, w, h, &film.mean()).unwrap();
-    let mut compare = Command::new(python());
-    compare.arg(shared().join("reference/tools/compare_images.py")).arg(&out).arg(&reference.image).arg("--check");
-    if estimator == Estimator::Lights {
+    let noise = if estimator == Estimator::Lights {
         write_image(&variance, w, h, &film.variance_of_mean()).unwrap();
-        compare.arg("--test-var").arg(&variance);
+        Noise::Variance(&variance)
     } else {
-        compare.args(["--test-spp", &spp.to_string()]);
-    }
-    let result = compare.output().expect("cannot run the comparison tool");
+        Noise::Spp(spp)
+    };
+    let (passed, text) = compare(&out, &reference.image, noise);
     let _ = std::fs::remove_file(&out);
     let _ = std::fs::remove_file(&variance);
-    let text = format!("{}{}", String::from_utf8_lossy(&result.stdout), String::from_utf8_lossy(&result.stderr));
     println!("{name}, {spp} spp, {estimator:?}:\n{text}");
-    assert!(result.status.success() && text.contains("PASS"), "{name} does not match the reference:\n{text}");
+    assert!(passed, "{name} does not match the reference:\n{text}");
 }
 
 /// Both estimators against one reference at 256 spp.

@@ -12,6 +12,7 @@ mod bench_tune;
 mod info;
 mod progress;
 mod render;
+mod render_gpu;
 mod scene_arg;
 mod tune;
 mod view;
@@ -88,6 +89,7 @@ fn main() -> ExitCode {
         }
     }
     let result = match cli.command {
+        Some(Command::Render(args)) if args.device == render::Device::Gpu => render_gpu::run(&args),
         Some(Command::Render(args)) => render::run(&args),
         Some(Command::Info(args)) => info::run(&args),
         Some(Command::Bench(args)) => bench::run(&args),

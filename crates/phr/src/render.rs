@@ -6,13 +6,14 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::builder::BuildReport;
 use phr_bvh::{sah_cost, Builder, SahConstants};
+use phr_render::camera::CameraDesc;
 use phr_render::denoise::{oidn, Atrous, Filter, Guide, GUIDE_SAMPLES};
 use phr_render::film::Film;
 use phr_render::geometry::Geometry;
 use phr_render::lights::LightSet;
 use phr_render::output::{write_heatmap, write_image};
 use phr_render::render::{Renderer, Tracing};
-use phr_render::scene::RenderSettings;
+use phr_render::scene::{RenderSettings, Scene};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -83,6 +84,19 @@ pub struct RenderArgs {
     /// other: the reference). The same image either way.
     #[arg(long, default_value = "wavefront")]
     pub tracing: Tracing,
+    /// Where to trace: `cpu`, or `gpu` (the WGSL path tracer of crates/phr-gpu on any Vulkan,
+    /// Metal or DX12 adapter, Mesa's lavapipe included; build with `--features gpu`). The GPU
+    /// traces the builder's binary tree with the thesis's estimator (`--integrator implicit
+    /// --denoiser none`).
+    #[arg(long, value_enum, default_value = "cpu")]
+    pub device: Device,
+}
+
+/// The devices of `phr render --device`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Device {
+    Cpu,
+    Gpu,
 }
 
 /// The denoisers of `phr render --denoiser`.
@@ -131,12 +145,13 @@ impl Default for RenderArgs {
             denoiser: Denoiser::Atrous,
             tracing: Tracing::default(),
             albedo: None,
+            device: Device::Cpu,
         }
     }
 }
 
 /// Fails before any work if an output could not be written (bad folder or extension).
-fn check_output(path: &Path, allowed: &[&str]) -> Result<()> {
+pub fn check_output(path: &Path, allowed: &[&str]) -> Result<()> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if !allowed.contains(&ext.as_str()) {
         bail!("{}: unsupported output format (use {})", path.display(), allowed.join(", "));
@@ -148,7 +163,9 @@ fn check_output(path: &Path, allowed: &[&str]) -> Result<()> {
     Ok(())
 }
 
-pub fn run(args: &RenderArgs) -> Result<()> {
+/// What both devices do first: check the outputs, load the scene, pick the view and settle the
+/// settings.
+pub fn prepare(args: &RenderArgs) -> Result<(Scene, CameraDesc, RenderSettings)> {
     check_output(&args.out, &["png", "exr", "pfm"])?;
     for p in [&args.linear, &args.variance, &args.albedo].into_iter().flatten() {
         check_output(p, &["exr", "pfm"])?;
@@ -175,6 +192,12 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         max_depth: args.max_depth.unwrap_or(scene.settings.max_depth),
     };
     settings.check().map_err(anyhow::Error::msg)?;
+    Ok((scene, view, settings))
+}
+
+/// `phr render` on the CPU (`--device gpu` is `crate::render_gpu`'s).
+pub fn run(args: &RenderArgs) -> Result<()> {
+    let (scene, view, settings) = prepare(args)?;
     let RenderSettings { width, height, spp, .. } = settings;
 
     let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;

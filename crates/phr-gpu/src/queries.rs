@@ -1,0 +1,70 @@
+//! Closest-hit queries for a batch of rays on the GPU (`shaders/hits.wgsl`): the traversal
+//! alone, without shading, to check it against the CPU's and to time it.
+
+use crate::device::{Binding, Gpu, GpuError};
+use crate::scene::{GpuScene, COMMON_WGSL};
+use phr_bvh::Ray;
+
+const HITS_WGSL: &str = include_str!("shaders/hits.wgsl");
+/// Invocations per workgroup (`@workgroup_size` of the kernel), and workgroups per row of the
+/// dispatch grid (`65535u` in the kernel).
+const GROUP: u32 = 64;
+const ROW: u32 = 65535;
+
+/// A closest hit found on the GPU.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GpuHit {
+    pub t: f32,
+    pub u: f32,
+    pub v: f32,
+    /// The primitive's number in the scene (triangles first, then spheres).
+    pub prim: u32,
+}
+
+/// The kernel, made once per scene layout.
+pub struct HitQueries {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+impl HitQueries {
+    pub fn new(gpu: &Gpu, scene: &GpuScene) -> Self {
+        let layout = gpu.layout("hit queries", &[Binding::Read, Binding::ReadWrite]);
+        let source = format!("{COMMON_WGSL}\n{HITS_WGSL}");
+        let pipeline = gpu.pipeline("hit queries", &source, "closest", &[&scene.layout, &layout]);
+        Self { pipeline, layout }
+    }
+
+    /// The closest hit of each ray in `[tmin, tmax]` (an infinite `tmax`: without end).
+    pub fn closest_hits(&self, gpu: &Gpu, scene: &GpuScene, rays: &[Ray]) -> Result<Vec<Option<GpuHit>>, GpuError> {
+        if rays.is_empty() {
+            return Ok(Vec::new());
+        }
+        let queries: Vec<[f32; 8]> = rays
+            .iter()
+            .map(|r| [r.origin.x, r.origin.y, r.origin.z, r.tmin, r.dir.x, r.dir.y, r.dir.z, r.tmax.min(f32::MAX)])
+            .collect();
+        let none = wgpu::BufferUsages::empty();
+        let input = gpu.storage("query rays", bytemuck::cast_slice(&queries), none)?;
+        let answers = gpu.storage("query answers", &vec![0u8; rays.len() * 16], wgpu::BufferUsages::COPY_SRC)?;
+        let group = gpu.bind("hit queries", &self.layout, &[&input, &answers]);
+        let groups = (rays.len() as u32).div_ceil(GROUP);
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &scene.group, &[]);
+            pass.set_bind_group(1, &group, &[]);
+            pass.dispatch_workgroups(groups.min(ROW), groups.div_ceil(ROW), 1);
+        }
+        gpu.queue.submit([encoder.finish()]);
+        let bytes = gpu.read(&answers, rays.len() as u64 * 16)?;
+        Ok(bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes)
+            .into_iter()
+            .map(|[t, u, v, prim]| {
+                let prim = prim.to_bits();
+                (prim != u32::MAX).then_some(GpuHit { t, u, v, prim })
+            })
+            .collect())
+    }
+}

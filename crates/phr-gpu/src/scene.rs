@@ -1,0 +1,188 @@
+//! The scene on the GPU: the binary BVH's nodes, the primitives in leaf order (so a leaf is a
+//! run of consecutive records, one 48-byte load each) and the materials, as storage buffers
+//! (`shaders/common.wgsl` reads them).
+
+use crate::device::{Binding, Gpu, GpuError};
+use bytemuck::{Pod, Zeroable};
+use phr_bvh::{tree_stats, Bvh};
+use phr_render::geometry::Geometry;
+use phr_render::material::Material;
+use phr_render::scene::{Background, Scene};
+
+/// The kernels' traversal stack (`STACK` in `shaders/common.wgsl`): a binary tree deeper than
+/// this is refused.
+pub const STACK: usize = 64;
+
+/// The WGSL every kernel starts with.
+pub(crate) const COMMON_WGSL: &str = include_str!("shaders/common.wgsl");
+
+/// The bit of a primitive's material word that marks a sphere (`SPHERE` in the shader).
+const SPHERE: u32 = 1 << 31;
+
+/// A node as the shader reads it: box, with `first` and `count` in the fourth lanes.
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct GpuNode {
+    pub lo: [f32; 4],
+    pub hi: [f32; 4],
+}
+
+/// A primitive (see `Prim` in the shader).
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct GpuPrim {
+    pub a: [f32; 4],
+    pub b: [f32; 4],
+    pub c: [f32; 4],
+}
+
+/// A material (see `Material` in `shaders/path.wgsl`).
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct GpuMaterial {
+    pub a: [f32; 4],
+    pub b: [f32; 4],
+}
+
+/// What is uploaded, laid out on the CPU (no GPU needed: the tests check it apart).
+#[derive(Clone, Debug, Default)]
+pub struct Packed {
+    pub nodes: Vec<GpuNode>,
+    pub prims: Vec<GpuPrim>,
+    pub materials: Vec<GpuMaterial>,
+}
+
+impl Packed {
+    /// Lays out `geometry` (its primitives and the binary tree of [`Geometry::bvh`]) and the
+    /// materials of `scene`. Refuses what the kernels cannot draw yet rather than drawing it
+    /// wrong.
+    pub fn new(scene: &Scene, geometry: &Geometry) -> Result<Self, GpuError> {
+        check_supported(scene, geometry)?;
+        let bvh = geometry.bvh();
+        check_tree(bvh)?;
+        let n_tris = geometry.triangles.len();
+        let mut nodes = Vec::with_capacity(bvh.nodes.len());
+        let mut prims = Vec::with_capacity(bvh.prim_indices.len());
+        for node in &bvh.nodes {
+            let first = if node.is_leaf() {
+                let start = prims.len() as u32;
+                prims.extend(bvh.leaf_prims(node).iter().map(|&p| prim_record(geometry, n_tris, p)));
+                start
+            } else {
+                node.first
+            };
+            let (lo, hi) = (node.bounds.min, node.bounds.max);
+            nodes.push(GpuNode {
+                lo: [lo.x, lo.y, lo.z, f32::from_bits(first)],
+                hi: [hi.x, hi.y, hi.z, f32::from_bits(node.count)],
+            });
+        }
+        if nodes.is_empty() {
+            // Nothing to hit: a root leaf of no primitives.
+            nodes.push(GpuNode { lo: [0.0; 4], hi: [0.0; 4] });
+        }
+        let materials = scene.materials.iter().map(material_record).collect();
+        Ok(Self { nodes, prims, materials })
+    }
+}
+
+fn prim_record(geometry: &Geometry, n_tris: usize, p: u32) -> GpuPrim {
+    let number = f32::from_bits(p);
+    let i = p as usize;
+    if i < n_tris {
+        let [v0, v1, v2] = geometry.triangles[i];
+        // The edges as the CPU computes them (`Geometry::triangle_edges`): the same bits.
+        let [v0, e1, e2] = [v0, v1 - v0, v2 - v0];
+        let material = f32::from_bits(geometry.triangle_material[i]);
+        GpuPrim { a: [v0.x, v0.y, v0.z, material], b: [e1.x, e1.y, e1.z, number], c: [e2.x, e2.y, e2.z, 0.0] }
+    } else {
+        let s = &geometry.spheres[i - n_tris];
+        let c = s.sphere.center;
+        GpuPrim {
+            a: [c.x, c.y, c.z, f32::from_bits(s.material | SPHERE)],
+            b: [s.sphere.radius, 0.0, 0.0, number],
+            c: [0.0; 4],
+        }
+    }
+}
+
+fn material_record(m: &Material) -> GpuMaterial {
+    let kind = |k: u32| f32::from_bits(k);
+    match *m {
+        Material::Lambertian { albedo } => GpuMaterial { a: [albedo.x, albedo.y, albedo.z, kind(0)], b: [0.0; 4] },
+        Material::Metal { albedo, fuzz, fuzz_in_sphere } => GpuMaterial {
+            a: [albedo.x, albedo.y, albedo.z, kind(1)],
+            b: [fuzz, f32::from(u8::from(fuzz_in_sphere)), 0.0, 0.0],
+        },
+        Material::Dielectric { ior } => GpuMaterial { a: [1.0, 1.0, 1.0, kind(2)], b: [ior, 0.0, 0.0, 0.0] },
+        Material::Emissive { emit, two_sided } => {
+            GpuMaterial { a: [emit.x, emit.y, emit.z, kind(3)], b: [f32::from(u8::from(two_sided)), 0.0, 0.0, 0.0] }
+        }
+    }
+}
+
+/// What the kernels do not draw yet.
+fn check_supported(scene: &Scene, geometry: &Geometry) -> Result<(), GpuError> {
+    let unsupported = |what: String| Err(GpuError::Unsupported(what));
+    if let Some(m) = scene.material_texture.iter().position(|t| t.is_some()) {
+        return unsupported(format!("material \"{}\" has a texture", scene.material_names[m]));
+    }
+    if let Some(m) = scene.material_mask.iter().position(|t| t.is_some()) {
+        return unsupported(format!("material \"{}\" has an alpha mask", scene.material_names[m]));
+    }
+    if matches!(scene.background, Background::Environment(_)) {
+        return unsupported("an environment map lights the scene".into());
+    }
+    if geometry.copy_count() > 0 || geometry.part_count() > 1 {
+        return unsupported("meshes placed by instances (flatten them first)".into());
+    }
+    if geometry.triangles.len() != geometry.triangle_count() {
+        return unsupported("the geometry's triangles were released".into());
+    }
+    Ok(())
+}
+
+/// The kernels trace binary trees no deeper than their stack.
+fn check_tree(bvh: &Bvh) -> Result<(), GpuError> {
+    if let Some(node) = bvh.nodes.iter().find(|n| !n.is_leaf() && n.child_count() != 2) {
+        return Err(GpuError::Unsupported(format!(
+            "a tree with {}-child nodes (the GPU traces binary trees: build with branching 2)",
+            node.child_count()
+        )));
+    }
+    let depth = tree_stats(bvh).max_depth;
+    if depth > STACK {
+        return Err(GpuError::Unsupported(format!("a tree {depth} levels deep (the GPU's stack holds {STACK})")));
+    }
+    Ok(())
+}
+
+/// The scene's buffers on the GPU, bound as group 0 of every kernel.
+pub struct GpuScene {
+    pub(crate) layout: wgpu::BindGroupLayout,
+    pub(crate) group: wgpu::BindGroup,
+    pub background: Background,
+    /// Bytes uploaded (nodes, primitives, materials).
+    pub bytes: u64,
+    pub prim_count: usize,
+}
+
+impl GpuScene {
+    /// Uploads what [`Packed::new`] lays out.
+    pub fn upload(gpu: &Gpu, scene: &Scene, geometry: &Geometry) -> Result<Self, GpuError> {
+        Self::upload_packed(gpu, &Packed::new(scene, geometry)?, scene.background.clone())
+    }
+
+    pub fn upload_packed(gpu: &Gpu, packed: &Packed, background: Background) -> Result<Self, GpuError> {
+        let none = wgpu::BufferUsages::empty();
+        let nodes = gpu.storage("BVH nodes", bytemuck::cast_slice(&packed.nodes), none)?;
+        let prims = gpu.storage("primitives", bytemuck::cast_slice(&packed.prims), none)?;
+        let materials = gpu.storage("materials", bytemuck::cast_slice(&packed.materials), none)?;
+        let layout = gpu.layout("scene", &[Binding::Read, Binding::Read, Binding::Read]);
+        let group = gpu.bind("scene", &layout, &[&nodes, &prims, &materials]);
+        let bytes = (size_of_val(&packed.nodes[..])
+            + size_of_val(&packed.prims[..])
+            + size_of_val(&packed.materials[..])) as u64;
+        Ok(Self { layout, group, background, bytes, prim_count: packed.prims.len() })
+    }
+}

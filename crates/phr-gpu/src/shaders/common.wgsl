@@ -1,0 +1,295 @@
+// What every kernel shares: 64-bit integers (WGSL has none) for the CPU's random numbers,
+// the scene's buffers, and the closest-hit traversal of the binary BVH.
+//
+// The primitive tests are those of `phr_bvh::triangle::intersect_triangle_edges` and
+// `phr_bvh::sphere::Sphere::intersect`, the box test that of `phr_bvh::Aabb::intersect`, and
+// the tie rule that of `phr_render::geometry` (at equal distance the lower primitive number
+// wins), so the GPU finds the hits the CPU finds.
+
+// ---- 64-bit unsigned integers as (low, high) ---------------------------------------------
+
+fn mulhi32(a: u32, b: u32) -> u32 {
+    let a0 = a & 0xffffu;
+    let a1 = a >> 16u;
+    let b0 = b & 0xffffu;
+    let b1 = b >> 16u;
+    let p00 = a0 * b0;
+    let p01 = a0 * b1;
+    let p10 = a1 * b0;
+    let p11 = a1 * b1;
+    let mid = (p00 >> 16u) + (p01 & 0xffffu) + (p10 & 0xffffu);
+    return p11 + (p01 >> 16u) + (p10 >> 16u) + (mid >> 16u);
+}
+
+fn mul64(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
+    return vec2<u32>(a.x * b.x, mulhi32(a.x, b.x) + a.x * b.y + a.y * b.x);
+}
+
+fn add64(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
+    let lo = a.x + b.x;
+    return vec2<u32>(lo, a.y + b.y + select(0u, 1u, lo < a.x));
+}
+
+// a >> n for 0 < n < 32.
+fn shr64(a: vec2<u32>, n: u32) -> vec2<u32> {
+    return vec2<u32>((a.x >> n) | (a.y << (32u - n)), a.y >> n);
+}
+
+// SplitMix64's finaliser (`phr_render::sampler::mix64`).
+fn mix64(z0: vec2<u32>) -> vec2<u32> {
+    var z = mul64(z0 ^ shr64(z0, 30u), vec2<u32>(0x1ce4e5b9u, 0xbf58476du));
+    z = mul64(z ^ shr64(z, 27u), vec2<u32>(0x133111ebu, 0x94d049bbu));
+    return z ^ shr64(z, 31u);
+}
+
+// ---- PCG32, seeded as `phr_render::sampler::Pcg32::for_pixel` ----------------------------
+
+struct Pcg {
+    state: vec2<u32>,
+    inc: vec2<u32>,
+}
+
+const PCG_MULTIPLIER: vec2<u32> = vec2<u32>(0x4c957f2du, 0x5851f42du);
+
+fn pcg_next(rng: ptr<function, Pcg>) -> u32 {
+    let old = (*rng).state;
+    (*rng).state = add64(mul64(old, PCG_MULTIPLIER), (*rng).inc);
+    // ((old >> 18) ^ old) >> 27, truncated; rotation old >> 59.
+    let xorshifted = shr64(shr64(old, 18u) ^ old, 27u).x;
+    let rot = old.y >> 27u;
+    return (xorshifted >> rot) | (xorshifted << ((32u - rot) & 31u));
+}
+
+fn pcg_new(seed: vec2<u32>, stream: vec2<u32>) -> Pcg {
+    // inc = (stream << 1) | 1
+    var rng = Pcg(vec2<u32>(0u, 0u), vec2<u32>((stream.x << 1u) | 1u, (stream.y << 1u) | (stream.x >> 31u)));
+    pcg_next(&rng);
+    rng.state = add64(rng.state, seed);
+    pcg_next(&rng);
+    return rng;
+}
+
+fn pcg_for_pixel(seed: vec2<u32>, frame: u32, pixel: u32) -> Pcg {
+    let key = mix64(seed ^ mix64(vec2<u32>(pixel, frame)));
+    return pcg_new(key, mix64(key ^ vec2<u32>(0x4c957f2du, 0x5851f42du)));
+}
+
+// Uniform in [0, 1).
+fn next_f32(rng: ptr<function, Pcg>) -> f32 {
+    return f32(pcg_next(rng) >> 8u) * (1.0 / 16777216.0);
+}
+
+const TAU: f32 = 6.283185307179586;
+
+fn unit_vector(rng: ptr<function, Pcg>) -> vec3<f32> {
+    let z = 1.0 - 2.0 * next_f32(rng);
+    let r = sqrt(max(1.0 - z * z, 0.0));
+    let phi = TAU * next_f32(rng);
+    return vec3<f32>(r * cos(phi), r * sin(phi), z);
+}
+
+fn in_unit_sphere(rng: ptr<function, Pcg>) -> vec3<f32> {
+    let v = unit_vector(rng);
+    let x = next_f32(rng);
+    return v * select(0.0, pow(x, 1.0 / 3.0), x > 0.0);
+}
+
+// ---- The scene ---------------------------------------------------------------------------
+
+// A BVH node: its box, and in `lo.w` / `hi.w` the bits of `phr_bvh::Node::first` / `count`.
+struct Node {
+    lo: vec4<f32>,
+    hi: vec4<f32>,
+}
+
+// A primitive in leaf order. Triangle: `a` = v0, `b` = e1, `c` = e2. Sphere: `a` = centre,
+// `b.x` = radius. `a.w`: the bits of the material, with SPHERE set for spheres; `b.w`: the
+// bits of the primitive's number in the scene.
+struct Prim {
+    a: vec4<f32>,
+    b: vec4<f32>,
+    c: vec4<f32>,
+}
+
+const INTERIOR: u32 = 0x80000000u;
+const SPHERE: u32 = 0x80000000u;
+const NO_HIT: u32 = 0xffffffffu;
+const STACK: u32 = 64u;
+const EPSILON: f32 = 1.1920929e-7;
+const EDGE_TOLERANCE: f32 = 8.0 * EPSILON;
+const MAX_EDGE_SLACK: f32 = 1.0e-5;
+const ROBUST_SLAB: f32 = 1.0 + 6.0 * EPSILON;
+const INFINITY: f32 = 0x1.fffffep+127;
+
+@group(0) @binding(0) var<storage, read> nodes: array<Node>;
+@group(0) @binding(1) var<storage, read> prims: array<Prim>;
+
+struct Ray {
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+    inv_dir: vec3<f32>,
+    tmin: f32,
+    tmax: f32,
+}
+
+// `phr_bvh::ray::safe_recip`: no infinite inverse, so the slab test sees no NaN.
+fn make_ray(origin: vec3<f32>, dir: vec3<f32>, tmin: f32, tmax: f32) -> Ray {
+    let tiny = select(vec3<f32>(1.0e-30), vec3<f32>(-1.0e-30), dir < vec3<f32>(0.0));
+    let safe = select(dir, tiny, abs(dir) < vec3<f32>(1.0e-30));
+    return Ray(origin, dir, 1.0 / safe, tmin, tmax);
+}
+
+// Entry distance into a node's box, or INFINITY.
+fn box_entry(node: Node, ray: Ray) -> f32 {
+    let t0 = (node.lo.xyz - ray.origin) * ray.inv_dir;
+    let t1 = (node.hi.xyz - ray.origin) * ray.inv_dir;
+    let near = min(t0, t1);
+    let far = max(t0, t1);
+    let tnear = max(max(near.x, near.y), max(near.z, ray.tmin));
+    let tfar = min(min(far.x, far.y), min(far.z, ray.tmax)) * ROBUST_SLAB;
+    return select(INFINITY, tnear, tnear <= tfar);
+}
+
+struct Hit {
+    t: f32,
+    u: f32,
+    v: f32,
+    // Index into `prims` (NO_HIT: none).
+    slot: u32,
+    // The primitive's number in the scene.
+    prim: u32,
+}
+
+// Möller–Trumbore with the CPU's edge tolerance. Returns (t, u, v), t = INFINITY for a miss.
+fn intersect_triangle(ray: Ray, v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>) -> vec3<f32> {
+    let miss = vec3<f32>(INFINITY, 0.0, 0.0);
+    let p = cross(ray.dir, e2);
+    let det = dot(e1, p);
+    if !(abs(det) > 0.0 && abs(det) < INFINITY) {
+        return miss;
+    }
+    let inv_det = 1.0 / det;
+    let s = ray.origin - v0;
+    let q = cross(s, e1);
+    let u = dot(s, p) * inv_det;
+    let v = dot(ray.dir, q) * inv_det;
+    let abs_inv_det = abs(inv_det);
+    let tol_u = min(EDGE_TOLERANCE * dot(abs(s), abs(p)) * abs_inv_det, MAX_EDGE_SLACK);
+    let tol_v = min(EDGE_TOLERANCE * dot(abs(ray.dir), abs(q)) * abs_inv_det, MAX_EDGE_SLACK);
+    if u < -tol_u || v < -tol_v || u + v > 1.0 + tol_u + tol_v {
+        return miss;
+    }
+    let t = dot(e2, q) * inv_det;
+    if t > ray.tmin && t <= ray.tmax && t < INFINITY {
+        return vec3<f32>(t, u, v);
+    }
+    return miss;
+}
+
+fn intersect_sphere(ray: Ray, center: vec3<f32>, radius: f32) -> f32 {
+    let r = abs(radius);
+    let f = ray.origin - center;
+    let a = dot(ray.dir, ray.dir);
+    let b = -dot(f, ray.dir);
+    let l = f + (b / a) * ray.dir;
+    let disc = a * (r * r - dot(l, l));
+    if disc < 0.0 {
+        return INFINITY;
+    }
+    let sq = sqrt(disc);
+    let q = b + select(-sq, sq, b >= 0.0);
+    var t0 = 0.0;
+    var t1 = 0.0;
+    if q != 0.0 {
+        t0 = q / a;
+        t1 = (dot(f, f) - r * r) / q;
+    }
+    let near = min(t0, t1);
+    let far = max(t0, t1);
+    if near > ray.tmin && near <= ray.tmax {
+        return near;
+    }
+    if far > ray.tmin && far <= ray.tmax {
+        return far;
+    }
+    return INFINITY;
+}
+
+// Tests primitive `slot` against `ray` and keeps it in `best` if it is closer (or as close
+// with a lower number); shrinks `ray.tmax` to the best distance.
+fn test_prim(slot: u32, ray: ptr<function, Ray>, best: ptr<function, Hit>) {
+    let prim = prims[slot];
+    let number = bitcast<u32>(prim.b.w);
+    var hit = vec3<f32>(INFINITY, 0.0, 0.0);
+    if (bitcast<u32>(prim.a.w) & SPHERE) == 0u {
+        hit = intersect_triangle(*ray, prim.a.xyz, prim.b.xyz, prim.c.xyz);
+    } else {
+        hit.x = intersect_sphere(*ray, prim.a.xyz, prim.b.x);
+    }
+    if hit.x == INFINITY {
+        return;
+    }
+    if hit.x < (*ray).tmax || (hit.x == (*ray).tmax && ((*best).slot == NO_HIT || number < (*best).prim)) {
+        (*ray).tmax = hit.x;
+        *best = Hit(hit.x, hit.y, hit.z, slot, number);
+    }
+}
+
+// The closest hit of `ray0` (slot NO_HIT: none): near child first, the far one on a stack
+// with its entry distance, skipped once a closer hit is known.
+fn closest_hit(ray0: Ray) -> Hit {
+    var ray = ray0;
+    var best = Hit(INFINITY, 0.0, 0.0, NO_HIT, NO_HIT);
+    if box_entry(nodes[0], ray) == INFINITY {
+        return best;
+    }
+    var stack_node: array<u32, STACK>;
+    var stack_t: array<f32, STACK>;
+    var sp = 0u;
+    var node = 0u;
+    loop {
+        let n = nodes[node];
+        let first = bitcast<u32>(n.lo.w);
+        let count = bitcast<u32>(n.hi.w);
+        var next = NO_HIT;
+        if (count & INTERIOR) == 0u {
+            for (var i = 0u; i < count; i++) {
+                test_prim(first + i, &ray, &best);
+            }
+        } else {
+            let d0 = box_entry(nodes[first], ray);
+            let d1 = box_entry(nodes[first + 1u], ray);
+            let hit0 = d0 < INFINITY;
+            let hit1 = d1 < INFINITY;
+            if hit0 && hit1 {
+                let near_first = d0 <= d1;
+                next = select(first + 1u, first, near_first);
+                stack_node[sp] = select(first, first + 1u, near_first);
+                stack_t[sp] = max(d0, d1);
+                sp++;
+            } else if hit0 {
+                next = first;
+            } else if hit1 {
+                next = first + 1u;
+            }
+        }
+        if next == NO_HIT {
+            // Pop the nearest pending node that may still hold a closer hit.
+            loop {
+                if sp == 0u {
+                    break;
+                }
+                sp--;
+                if stack_t[sp] <= ray.tmax {
+                    next = stack_node[sp];
+                    break;
+                }
+            }
+            if next == NO_HIT {
+                break;
+            }
+        }
+        node = next;
+    }
+    return best;
+}

@@ -1,0 +1,220 @@
+// The thesis's path tracer (`phr_render::integrator`, the implicit estimator): one path per
+// pixel per dispatch, BSDF sampling only, at most `max_depth` segments, the materials of
+// `phr_render::material`. Each pixel's random numbers are the CPU's (`Pcg32::for_pixel`,
+// `Pcg32::pixel_jitter`), so the two converge to the same image; adds the sample and its
+// square to the accumulation buffers.
+
+struct Frame {
+    // width, height, frame number, max_depth
+    size: vec4<u32>,
+    // seed (low, high), background kind (0 constant, 1 gradient), unused
+    seed: vec4<u32>,
+    origin: vec4<f32>,
+    forward: vec4<f32>,
+    horizontal: vec4<f32>,
+    vertical: vec4<f32>,
+    // Constant: `sky_a`. Gradient: `sky_a` at the bottom, `sky_b` at the top.
+    sky_a: vec4<f32>,
+    sky_b: vec4<f32>,
+}
+
+// A material: `a.w` its kind (the bits of LAMBERTIAN, METAL, ...), `a.xyz` its albedo or
+// emission; metal: `b.x` fuzz, `b.y` 1 for RTIOW v3's fuzz in the ball; glass: `b.x` its index
+// of refraction; emitter: `b.x` 1 if two-sided.
+struct Material {
+    a: vec4<f32>,
+    b: vec4<f32>,
+}
+
+const LAMBERTIAN: u32 = 0u;
+const METAL: u32 = 1u;
+const DIELECTRIC: u32 = 2u;
+const EMISSIVE: u32 = 3u;
+const TRIANGLE_OFFSET: f32 = 1.0e-6;
+const SPHERE_OFFSET: f32 = 1500.0 / 16777216.0;
+
+@group(0) @binding(2) var<storage, read> materials: array<Material>;
+@group(1) @binding(0) var<uniform> frame: Frame;
+@group(1) @binding(1) var<storage, read_write> sum: array<vec4<f32>>;
+@group(1) @binding(2) var<storage, read_write> sum_sq: array<vec4<f32>>;
+// Rays traced, as a 64-bit count (low, high).
+@group(1) @binding(3) var<storage, read_write> ray_count: array<atomic<u32>, 2>;
+
+// `Pcg32::pixel_jitter`: point `frame` of the R2 sequence, rotated by the pixel's own random
+// offset, in 32-bit fixed point (the CPU adds in f64; both wrap into [0, 1)).
+fn pixel_jitter(seed: vec2<u32>, n: u32, pixel: u32) -> vec2<f32> {
+    var rotation = pcg_for_pixel(seed ^ vec2<u32>(0x4f6cdd1du, 0x2545f491u), 0xffffffffu, pixel);
+    let ox = (pcg_next(&rotation) >> 8u) << 8u;
+    let oy = (pcg_next(&rotation) >> 8u) << 8u;
+    // round(2^32 / φ₂) and round(2^32 / φ₂²), φ₂ the plastic number.
+    let x = 0x80000000u + n * 3242174889u + ox;
+    let y = 0x80000000u + n * 2447445414u + oy;
+    return vec2<f32>(f32(x >> 8u), f32(y >> 8u)) * (1.0 / 16777216.0);
+}
+
+fn sky(unit_dir: vec3<f32>) -> vec3<f32> {
+    if frame.seed.z == 0u {
+        return frame.sky_a.xyz;
+    }
+    let a = 0.5 * (unit_dir.y + 1.0);
+    return (1.0 - a) * frame.sky_a.xyz + a * frame.sky_b.xyz;
+}
+
+fn normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let l = length(v);
+    if l > 0.0 && l < INFINITY {
+        return v / l;
+    }
+    return fallback;
+}
+
+fn schlick(cos_theta: f32, eta: f32) -> f32 {
+    let r = (1.0 - eta) / (1.0 + eta);
+    let r0 = r * r;
+    let m = 1.0 - cos_theta;
+    return r0 + (1.0 - r0) * m * m * m * m * m;
+}
+
+fn refract_dir(v: vec3<f32>, n: vec3<f32>, eta: f32, cos_theta: f32) -> vec3<f32> {
+    let perp = eta * (v + cos_theta * n);
+    let parallel = -sqrt(abs(1.0 - dot(perp, perp))) * n;
+    return perp + parallel;
+}
+
+// A hit's surface: position, unit normal, side, material, offset for new rays.
+struct Surface {
+    position: vec3<f32>,
+    normal: vec3<f32>,
+    front: bool,
+    material: u32,
+    offset: f32,
+}
+
+fn surface_at(ray: Ray, hit: Hit) -> Surface {
+    let prim = prims[hit.slot];
+    let bits = bitcast<u32>(prim.a.w);
+    var p: vec3<f32>;
+    var n: vec3<f32>;
+    var rel: f32;
+    if (bits & SPHERE) == 0u {
+        p = prim.a.xyz + prim.b.xyz * hit.u + prim.c.xyz * hit.v;
+        n = normalize_or(cross(prim.b.xyz, prim.c.xyz), vec3<f32>(0.0, 0.0, 1.0));
+        rel = TRIANGLE_OFFSET;
+    } else {
+        let c = prim.a.xyz;
+        let radius = prim.b.x;
+        let on_ray = ray.origin + ray.dir * hit.t;
+        p = c + (on_ray - c) * (abs(radius) / length(on_ray - c));
+        n = normalize_or((p - c) / radius, vec3<f32>(0.0, 1.0, 0.0));
+        rel = SPHERE_OFFSET;
+    }
+    let front = dot(ray.dir, n) < 0.0;
+    let ap = abs(p);
+    let offset = rel * (1.0 + max(max(ap.x, ap.y), ap.z));
+    return Surface(p, n, front, bits & ~SPHERE, offset);
+}
+
+fn spawn_origin(s: Surface, dir: vec3<f32>) -> vec3<f32> {
+    let side = select(-s.normal, s.normal, dot(dir, s.normal) >= 0.0);
+    return s.position + s.offset * side;
+}
+
+// `Material::scatter`: the next direction and its weight in `xyz` of the two, or w = 0 in the
+// weight: absorbed.
+struct Scatter {
+    dir: vec3<f32>,
+    weight: vec4<f32>,
+}
+
+fn scatter(m: Material, dir: vec3<f32>, normal: vec3<f32>, front: bool, rng: ptr<function, Pcg>) -> Scatter {
+    let facing = select(-normal, normal, front);
+    let kind = bitcast<u32>(m.a.w);
+    let absorbed = Scatter(vec3<f32>(0.0), vec4<f32>(0.0));
+    if kind == LAMBERTIAN {
+        var d = facing + unit_vector(rng);
+        let ad = abs(d);
+        if max(max(ad.x, ad.y), ad.z) < 1.0e-8 {
+            d = facing;
+        }
+        return Scatter(d, vec4<f32>(m.a.xyz, 1.0));
+    }
+    if kind == METAL {
+        let reflected = normalize(reflect(normalize(dir), facing));
+        var jitter: vec3<f32>;
+        if m.b.y != 0.0 {
+            jitter = in_unit_sphere(rng);
+        } else {
+            jitter = unit_vector(rng);
+        }
+        let d = reflected + min(m.b.x, 1.0) * jitter;
+        if dot(d, facing) > 0.0 {
+            return Scatter(d, vec4<f32>(m.a.xyz, 1.0));
+        }
+        return absorbed;
+    }
+    if kind == DIELECTRIC {
+        let unit = normalize(dir);
+        let ior = m.b.x;
+        let eta = select(ior, 1.0 / ior, front);
+        let cos_theta = min(dot(-unit, facing), 1.0);
+        let sin_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0));
+        var d: vec3<f32>;
+        if eta * sin_theta > 1.0 || schlick(cos_theta, eta) > next_f32(rng) {
+            d = reflect(unit, facing);
+        } else {
+            d = refract_dir(unit, facing, eta, cos_theta);
+        }
+        return Scatter(d, vec4<f32>(1.0, 1.0, 1.0, 1.0));
+    }
+    return absorbed;
+}
+
+fn emitted(m: Material, front: bool) -> vec3<f32> {
+    if bitcast<u32>(m.a.w) == EMISSIVE && (front || m.b.x != 0.0) {
+        return m.a.xyz;
+    }
+    return vec3<f32>(0.0);
+}
+
+@compute @workgroup_size(8, 8)
+fn render(@builtin(global_invocation_id) id: vec3<u32>) {
+    let width = frame.size.x;
+    let height = frame.size.y;
+    if id.x >= width || id.y >= height {
+        return;
+    }
+    let pixel = id.y * width + id.x;
+    let seed = frame.seed.xy;
+    var rng = pcg_for_pixel(seed, frame.size.z, pixel);
+    let jitter = pixel_jitter(seed, frame.size.z, pixel);
+    let sx = 2.0 * (f32(id.x) + jitter.x) / f32(width) - 1.0;
+    let sy = 2.0 * (f32(id.y) + jitter.y) / f32(height) - 1.0;
+    let camera_dir = normalize(frame.forward.xyz + sx * frame.horizontal.xyz - sy * frame.vertical.xyz);
+    var ray = make_ray(frame.origin.xyz, camera_dir, 0.0, INFINITY);
+    var radiance = vec3<f32>(0.0);
+    var throughput = vec3<f32>(1.0);
+    var rays = 0u;
+    for (var segment = 0u; segment < frame.size.w; segment++) {
+        rays++;
+        let hit = closest_hit(ray);
+        if hit.slot == NO_HIT {
+            radiance += throughput * sky(normalize(ray.dir));
+            break;
+        }
+        let surface = surface_at(ray, hit);
+        let m = materials[surface.material];
+        radiance += throughput * emitted(m, surface.front);
+        let s = scatter(m, ray.dir, surface.normal, surface.front, &rng);
+        if s.weight.w == 0.0 {
+            break;
+        }
+        throughput *= s.weight.xyz;
+        ray = make_ray(spawn_origin(surface, s.dir), s.dir, 0.0, INFINITY);
+    }
+    sum[pixel] += vec4<f32>(radiance, 0.0);
+    sum_sq[pixel] += vec4<f32>(radiance * radiance, 0.0);
+    let low = atomicAdd(&ray_count[0], rays);
+    if low + rays < low {
+        atomicAdd(&ray_count[1], 1u);
+    }
+}

@@ -1,0 +1,153 @@
+//! The progressive path tracer on the GPU: one dispatch per frame, one invocation per pixel
+//! (`shaders/path.wgsl`), sums of the samples and of their squares kept on the GPU until the
+//! caller reads them back as a [`Film`].
+
+use crate::device::{Binding, Gpu, GpuError};
+use crate::scene::{GpuScene, COMMON_WGSL};
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use phr_render::camera::Camera;
+use phr_render::film::Film;
+use phr_render::scene::Background;
+
+const PATH_WGSL: &str = include_str!("shaders/path.wgsl");
+/// The kernel's workgroup is 8 × 8 pixels.
+const GROUP: u32 = 8;
+
+/// `Frame` in `shaders/path.wgsl`.
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+#[repr(C)]
+struct FrameUniform {
+    size: [u32; 4],
+    seed: [u32; 4],
+    origin: [f32; 4],
+    forward: [f32; 4],
+    horizontal: [f32; 4],
+    vertical: [f32; 4],
+    sky_a: [f32; 4],
+    sky_b: [f32; 4],
+}
+
+fn lanes(v: Vec3) -> [f32; 4] {
+    [v.x, v.y, v.z, 0.0]
+}
+
+/// The GPU's renderer of one view of a [`GpuScene`], at one size, depth and seed.
+pub struct GpuTracer<'a> {
+    gpu: &'a Gpu,
+    scene: &'a GpuScene,
+    pipeline: wgpu::ComputePipeline,
+    group: wgpu::BindGroup,
+    frame: wgpu::Buffer,
+    sum: wgpu::Buffer,
+    sum_sq: wgpu::Buffer,
+    rays: wgpu::Buffer,
+    uniform: FrameUniform,
+    pub width: u32,
+    pub height: u32,
+    /// Frames accumulated since the last [`GpuTracer::clear`].
+    samples: u32,
+}
+
+impl<'a> GpuTracer<'a> {
+    /// The renderer of `scene` seen by `camera` (made for `width × height`), paths of at most
+    /// `max_depth` segments, random numbers of `seed` (the CPU's for the same seed).
+    pub fn new(
+        gpu: &'a Gpu,
+        scene: &'a GpuScene,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        max_depth: u32,
+        seed: u64,
+    ) -> Result<Self, GpuError> {
+        let basis = camera.basis();
+        let (kind, sky_a, sky_b) = match scene.background {
+            Background::Constant(c) => (0, c, c),
+            Background::Gradient { bottom, top } => (1, bottom, top),
+            Background::Environment(_) => return Err(GpuError::Unsupported("an environment map".into())),
+        };
+        let uniform = FrameUniform {
+            size: [width, height, 0, max_depth],
+            seed: [seed as u32, (seed >> 32) as u32, kind, 0],
+            origin: lanes(basis.origin),
+            forward: lanes(basis.forward),
+            horizontal: lanes(basis.horizontal),
+            vertical: lanes(basis.vertical),
+            sky_a: lanes(sky_a),
+            sky_b: lanes(sky_b),
+        };
+        let device = &gpu.device;
+        let frame = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame"),
+            size: size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let zeros = vec![0u8; width as usize * height as usize * 16];
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let sum = gpu.storage("sum", &zeros, copy)?;
+        let sum_sq = gpu.storage("sum of squares", &zeros, copy)?;
+        let rays = gpu.storage("rays", &[0; 8], copy)?;
+        let layout =
+            gpu.layout("path tracer", &[Binding::Uniform, Binding::ReadWrite, Binding::ReadWrite, Binding::ReadWrite]);
+        let group = gpu.bind("path tracer", &layout, &[&frame, &sum, &sum_sq, &rays]);
+        let source = format!("{COMMON_WGSL}\n{PATH_WGSL}");
+        let pipeline = gpu.pipeline("path tracer", &source, "render", &[&scene.layout, &layout]);
+        Ok(Self { gpu, scene, pipeline, group, frame, sum, sum_sq, rays, uniform, width, height, samples: 0 })
+    }
+
+    /// Submits frames `frames` (one sample per pixel each; frame `k` gives every pixel the
+    /// sample the CPU's frame `k` gives it, up to rounding) and returns without waiting.
+    pub fn render(&mut self, frames: std::ops::Range<u32>) {
+        for k in frames {
+            self.uniform.size[2] = k;
+            // Takes effect before the next submission: each frame sees its own number.
+            self.gpu.queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&self.uniform));
+            let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &self.scene.group, &[]);
+                pass.set_bind_group(1, &self.group, &[]);
+                pass.dispatch_workgroups(self.width.div_ceil(GROUP), self.height.div_ceil(GROUP), 1);
+            }
+            self.gpu.queue.submit([encoder.finish()]);
+            self.samples += 1;
+        }
+    }
+
+    /// Waits for the submitted frames.
+    pub fn wait(&self) -> Result<(), GpuError> {
+        self.gpu.wait()
+    }
+
+    /// Discards the accumulated samples (the view changed).
+    pub fn clear(&mut self) {
+        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+        for b in [&self.sum, &self.sum_sq, &self.rays] {
+            encoder.clear_buffer(b, 0, None);
+        }
+        self.gpu.queue.submit([encoder.finish()]);
+        self.samples = 0;
+    }
+
+    /// What has accumulated, read back (waits for the submitted frames).
+    pub fn film(&self) -> Result<Film, GpuError> {
+        let pixels = self.width as u64 * self.height as u64;
+        let read = |buffer: &wgpu::Buffer| -> Result<Vec<[f64; 3]>, GpuError> {
+            let bytes = self.gpu.read(buffer, pixels * 16)?;
+            Ok(bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes)
+                .into_iter()
+                .map(|[r, g, b, _]| [f64::from(r), f64::from(g), f64::from(b)])
+                .collect())
+        };
+        Ok(Film::from_sums(self.width, self.height, read(&self.sum)?, read(&self.sum_sq)?, self.samples))
+    }
+
+    /// Rays traced since the last [`GpuTracer::clear`] (waits for the submitted frames).
+    pub fn rays(&self) -> Result<u64, GpuError> {
+        let count = bytemuck::pod_collect_to_vec::<u8, u32>(&self.gpu.read(&self.rays, 8)?);
+        Ok(u64::from(count[0]) | (u64::from(count[1]) << 32))
+    }
+}

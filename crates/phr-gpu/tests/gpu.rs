@@ -1,0 +1,237 @@
+//! The GPU tracer held against the CPU's and against Mitsuba 3.
+//!
+//! The tests that run kernels need a GPU adapter: a real GPU, or Mesa's software Vulkan driver
+//! lavapipe (`apt-get install mesa-vulkan-drivers libvulkan1`). The plain test command skips
+//! them (`#[ignore]`); `.ci/run` installs lavapipe and runs them with `--ignored`, where a
+//! missing adapter fails them, saying what to install.
+
+use glam::Vec3;
+use phr_bvh::{Builder, Ray};
+use phr_gpu::scene::Packed;
+use phr_gpu::{Gpu, GpuError, GpuScene, GpuTracer, HitQueries};
+use phr_render::camera::Camera;
+use phr_render::geometry::Geometry;
+use phr_render::output::write_image;
+use phr_render::render::Renderer;
+use phr_render::sampler::Pcg32;
+use phr_render::scene::{load_scene, Scene};
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+#[path = "../../phr-render/tests/support/compare_images.rs"]
+mod compare_images;
+use compare_images::{compare, shared, Noise};
+
+fn gpu() -> &'static Gpu {
+    static GPU: OnceLock<Gpu> = OnceLock::new();
+    GPU.get_or_init(|| {
+        let gpu = Gpu::new().unwrap_or_else(|e| panic!("{e}"));
+        println!("GPU: {}", gpu.describe());
+        gpu
+    })
+}
+
+fn reference_scene(name: &str) -> Scene {
+    let path = shared().join(format!("reference/scenes/{name}.json"));
+    load_scene(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// A scene of the repository's `scenes/suite`.
+fn suite_scene(name: &str) -> Scene {
+    let path = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/suite")).join(format!("{name}.json"));
+    load_scene(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn built(scene: &Scene, builder: &Builder) -> Geometry {
+    let mut geometry = Geometry::new(scene);
+    geometry.build(builder);
+    geometry
+}
+
+/// Each leaf's primitives are one run of records, the tree's own, with the CPU's edges.
+#[test]
+fn packing_puts_each_leaf_in_a_row() {
+    let scene = reference_scene("cornell_glass_mirror");
+    let geometry = built(&scene, &Builder::default());
+    let packed = Packed::new(&scene, &geometry).unwrap();
+    let bvh = geometry.bvh();
+    assert_eq!(packed.nodes.len(), bvh.nodes.len());
+    assert_eq!(packed.prims.len(), bvh.prim_indices.len());
+    let n_tris = geometry.triangle_count();
+    let mut spheres = 0;
+    for (node, gpu_node) in bvh.nodes.iter().zip(&packed.nodes) {
+        assert_eq!(gpu_node.hi[3].to_bits(), node.count);
+        if !node.is_leaf() {
+            assert_eq!(gpu_node.lo[3].to_bits(), node.first);
+            continue;
+        }
+        let first = gpu_node.lo[3].to_bits() as usize;
+        for (k, &p) in bvh.leaf_prims(node).iter().enumerate() {
+            let record = packed.prims[first + k];
+            assert_eq!(record.b[3].to_bits(), p, "the record's number");
+            if (p as usize) < n_tris {
+                let [v0, e1, e2] = geometry.triangle_edges(p as usize);
+                assert_eq!([record.a[0], record.a[1], record.a[2]], v0.to_array());
+                assert_eq!([record.b[0], record.b[1], record.b[2]], e1.to_array());
+                assert_eq!([record.c[0], record.c[1], record.c[2]], e2.to_array());
+                assert_eq!(record.a[3].to_bits(), geometry.triangle_material[p as usize]);
+            } else {
+                spheres += 1;
+                let s = &geometry.spheres[p as usize - n_tris];
+                assert_eq!(record.b[0], s.sphere.radius);
+                assert_eq!(record.a[3].to_bits(), s.material | 1 << 31);
+            }
+        }
+    }
+    assert_eq!(spheres, 2);
+    assert_eq!(packed.materials.len(), scene.materials.len());
+}
+
+/// What the kernels cannot draw yet is refused, never drawn wrong.
+#[test]
+fn what_the_gpu_cannot_draw_is_refused() {
+    let textured = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../phr-render/tests/references/textured.json"));
+    let scene = load_scene(&textured).unwrap();
+    let geometry = built(&scene, &Builder::default());
+    match Packed::new(&scene, &geometry) {
+        Err(GpuError::Unsupported(what)) => assert!(what.contains("texture"), "{what}"),
+        other => panic!("a textured scene was not refused: {:?}", other.map(|p| p.nodes.len())),
+    }
+    let scene = reference_scene("cornell_obj");
+    let wide = built(&scene, &Builder::PHR_FAST.with_branching(4).unwrap());
+    match Packed::new(&scene, &wide) {
+        Err(GpuError::Unsupported(what)) => assert!(what.contains("binary"), "{what}"),
+        other => panic!("a 4-wide tree was not refused: {:?}", other.map(|p| p.nodes.len())),
+    }
+}
+
+/// Rays of every kind through `scene`: the camera's through a grid of pixels, and rays from
+/// random points in the scene's box in random directions, some with a finite `tmax`.
+fn probe_rays(scene: &Scene, n: usize) -> Vec<Ray> {
+    let view = scene.view(None).unwrap();
+    let camera = Camera::new(&view, 64, 64);
+    let mut rays: Vec<Ray> = (0..64 * 64).map(|i| camera.ray((i % 64) as f32 + 0.5, (i / 64) as f32 + 0.5)).collect();
+    let bounds = scene.bounds();
+    let mut rng = Pcg32::new(7, 3);
+    while rays.len() < n {
+        let at = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let origin = bounds.min + at * (bounds.max - bounds.min);
+        let dir = rng.unit_vector();
+        let tmax =
+            if rng.next_f32() < 0.25 { rng.next_f32() * (bounds.max - bounds.min).length() } else { f32::INFINITY };
+        rays.push(Ray::with_interval(origin, dir, 0.0, tmax));
+    }
+    rays
+}
+
+/// The GPU's traversal finds the CPU's closest hits: the same primitive at the same distance,
+/// but where two primitives are hit at the same distance within float rounding (a ray through
+/// an edge), and the same misses.
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn closest_hits_equal_the_cpu() {
+    let gpu = gpu();
+    let scenes = ["cornell_obj", "cornell_glass_mirror", "spheres_sky", "bunny_sky"];
+    let mut cases: Vec<(&str, Builder)> =
+        scenes.iter().flat_map(|&s| [(s, Builder::default()), (s, Builder::PHR_FAST)]).collect();
+    // 262k triangles, and the SBVH, whose leaves share triangles.
+    cases.push(("sponza", "sbvh".parse().unwrap()));
+    for (name, builder) in cases {
+        let scene = if name == "sponza" { suite_scene(name) } else { reference_scene(name) };
+        let geometry = built(&scene, &builder);
+        let uploaded = GpuScene::upload(gpu, &scene, &geometry).unwrap();
+        let rays = probe_rays(&scene, 50_000);
+        let hits = HitQueries::new(gpu, &uploaded).closest_hits(gpu, &uploaded, &rays).unwrap();
+        let (mut same, mut ties, mut found) = (0, 0, 0);
+        for (ray, gpu_hit) in rays.iter().zip(&hits) {
+            let cpu_hit = geometry.intersect(ray);
+            found += usize::from(cpu_hit.is_some());
+            match (cpu_hit, gpu_hit) {
+                (None, None) => same += 1,
+                (Some(c), Some(g)) if c.prim == g.prim => {
+                    assert!(
+                        (c.t - g.t).abs() <= 1e-5 * c.t,
+                        "{name}: prim {} at t {} (CPU) and {} (GPU)",
+                        c.prim,
+                        c.t,
+                        g.t
+                    );
+                    same += 1;
+                }
+                (Some(c), Some(g)) if (c.t - g.t).abs() <= 1e-5 * c.t => ties += 1,
+                (c, g) => panic!("{name} ({builder}): ray {ray:?}: CPU {c:?}, GPU {g:?}"),
+            }
+        }
+        println!("{name} ({builder}): {same} rays alike, {ties} ties at one distance, {found} hits of {}", rays.len());
+        assert!(found > rays.len() / 4, "{name}: the rays should hit something");
+        assert!(ties * 1000 <= rays.len(), "{name}: {ties} ties of {}", rays.len());
+    }
+}
+
+/// Frame `k` on the GPU gives (almost) every pixel the sample the CPU's frame `k` gives it: the
+/// same camera ray, random numbers and materials, so the paths coincide until rounding sends
+/// one elsewhere (a bounce off an edge).
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn frames_equal_the_cpu_pixel_by_pixel() {
+    let gpu = gpu();
+    for name in ["cornell_glass_mirror", "spheres_sky"] {
+        let scene = reference_scene(name);
+        let geometry = built(&scene, &Builder::default());
+        let uploaded = GpuScene::upload(gpu, &scene, &geometry).unwrap();
+        let view = scene.view(None).unwrap();
+        let settings = phr_render::scene::RenderSettings { width: 96, height: 80, ..scene.settings };
+        let camera = Camera::new(&view, settings.width, settings.height);
+        let cpu = Renderer::new(&scene, &geometry, &view, &settings, None).with_seed(99);
+        for frame in [0, 7] {
+            let mut tracer =
+                GpuTracer::new(gpu, &uploaded, &camera, settings.width, settings.height, settings.max_depth, 99)
+                    .unwrap();
+            tracer.render(frame..frame + 1);
+            let gpu_pixels = tracer.film().unwrap().mean();
+            let cpu_pixels = cpu.render_frame(frame).0;
+            // Black samples (paths that never reached a light) agree whatever the random
+            // numbers: count the others.
+            let lit: Vec<(Vec3, Vec3)> = cpu_pixels
+                .iter()
+                .zip(&gpu_pixels)
+                .filter(|(c, g)| c.max_element() > 0.0 || g.max_element() > 0.0)
+                .map(|(c, g)| (*c, *g))
+                .collect();
+            let alike = lit
+                .iter()
+                .filter(|(c, g)| (*c - *g).abs().max_element() <= 1e-3 * (1.0 + c.abs().max_element()))
+                .count();
+            let share = alike as f64 / lit.len() as f64;
+            println!("{name}, frame {frame}: {:.2} % of {} lit pixels alike", 100.0 * share, lit.len());
+            assert!(lit.len() > 100, "{name}: too few lit pixels ({})", lit.len());
+            assert!(share >= 0.98, "{name}, frame {frame}: only {:.2} % of the lit pixels alike", 100.0 * share);
+        }
+    }
+}
+
+/// The GPU's images of the four references of `shared/reference`, 256 samples per pixel,
+/// through the team's comparison tool.
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn images_match_the_mitsuba_references() {
+    let gpu = gpu();
+    const SPP: u32 = 256;
+    for name in ["cornell_obj", "cornell_glass_mirror", "spheres_sky", "bunny_sky"] {
+        let scene = reference_scene(name);
+        let geometry = built(&scene, &Builder::default());
+        let uploaded = GpuScene::upload(gpu, &scene, &geometry).unwrap();
+        let (w, h) = (scene.settings.width, scene.settings.height);
+        let camera = Camera::new(&scene.view(None).unwrap(), w, h);
+        let mut tracer = GpuTracer::new(gpu, &uploaded, &camera, w, h, scene.settings.max_depth, 12345).unwrap();
+        tracer.render(0..SPP);
+        let film = tracer.film().unwrap();
+        assert_eq!(film.samples, SPP);
+        let out = std::env::temp_dir().join(format!("phr-gpu-{name}-{}.pfm", std::process::id()));
+        write_image(&out, w, h, &film.mean()).unwrap();
+        let (passed, text) = compare(&out, &shared().join(format!("reference/images/{name}.exr")), Noise::Spp(SPP));
+        let _ = std::fs::remove_file(&out);
+        println!("{name}, {SPP} spp on the GPU:\n{text}");
+        assert!(passed, "{name} on the GPU does not match the reference:\n{text}");
+    }
+}

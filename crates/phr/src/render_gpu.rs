@@ -1,0 +1,110 @@
+//! `phr render --device gpu`: the render on the GPU (`crates/phr-gpu`), in a `phr` built with
+//! the cargo feature `gpu`. The CPU builds the tree, the GPU traces and accumulates; the
+//! outputs are the CPU render's (mean, linear mean, variance of the mean).
+
+use crate::render::{prepare, Denoiser, Integrator, RenderArgs};
+use anyhow::{bail, Result};
+use phr_render::camera::CameraDesc;
+use phr_render::scene::{RenderSettings, Scene};
+
+pub fn run(args: &RenderArgs) -> Result<()> {
+    if args.integrator != Integrator::Implicit || args.denoiser != Denoiser::None {
+        bail!(
+            "--device gpu: the GPU tracer has the thesis's estimator (implicit lights) and no denoiser yet: \
+             add `--integrator implicit --denoiser none`"
+        );
+    }
+    if args.heatmap.is_some() || args.albedo.is_some() {
+        bail!("--device gpu writes no heatmap and no albedo guide yet");
+    }
+    if args.branching != 2 {
+        bail!("--device gpu traces binary trees: leave --branching at 2");
+    }
+    let (scene, view, settings) = prepare(args)?;
+    imp::run(args, scene, &view, &settings)
+}
+
+#[cfg(not(feature = "gpu"))]
+mod imp {
+    use super::*;
+
+    pub fn run(_: &RenderArgs, _: Scene, _: &CameraDesc, _: &RenderSettings) -> Result<()> {
+        bail!(
+            "this phr was built without the GPU tracer: build it with `cargo build --release --features gpu` \
+             (or run `cargo run --release --features gpu -- render ... --device gpu`)"
+        )
+    }
+}
+
+#[cfg(feature = "gpu")]
+mod imp {
+    use super::*;
+    use crate::render::describe_build;
+    use anyhow::Context;
+    use phr_gpu::{Gpu, GpuScene, GpuTracer};
+    use phr_render::camera::Camera;
+    use phr_render::geometry::Geometry;
+    use phr_render::output::write_image;
+    use std::time::Instant;
+
+    /// Frames submitted between two progress updates (each update waits for the GPU).
+    const CHUNK: u32 = 16;
+
+    pub fn run(args: &RenderArgs, mut scene: Scene, view: &CameraDesc, settings: &RenderSettings) -> Result<()> {
+        let RenderSettings { width, height, spp, max_depth } = *settings;
+        let gpu = Gpu::new()?;
+        // The GPU traces one tree over every triangle where it is.
+        scene.flatten_instanced();
+        let mut geometry = Geometry::new(&scene);
+        let report = geometry.build_report(&args.builder);
+        let build = describe_build(&args.builder, &report);
+        geometry.set_bvh(report.bvh);
+
+        let start = Instant::now();
+        let uploaded = GpuScene::upload(&gpu, &scene, &geometry)?;
+        let mut tracer =
+            GpuTracer::new(&gpu, &uploaded, &Camera::new(view, width, height), width, height, max_depth, args.seed)?;
+        gpu.wait()?;
+        let upload_ms = start.elapsed().as_secs_f64() * 1e3;
+
+        let progress = if args.quiet { indicatif::ProgressBar::hidden() } else { crate::progress::bar(spp as u64) };
+        progress.set_message(format!("spp on {}", gpu.describe()));
+        let start = Instant::now();
+        let mut frame = 0;
+        while frame < spp {
+            let next = (frame + CHUNK).min(spp);
+            tracer.render(frame..next);
+            tracer.wait()?;
+            progress.set_position(next as u64);
+            frame = next;
+        }
+        let render_ms = start.elapsed().as_secs_f64() * 1e3;
+        progress.finish_and_clear();
+        let film = tracer.film()?;
+        let rays = tracer.rays()?;
+
+        write_image(&args.out, width, height, &film.mean())
+            .with_context(|| format!("writing {}", args.out.display()))?;
+        if let Some(p) = &args.linear {
+            write_image(p, width, height, &film.mean()).with_context(|| format!("writing {}", p.display()))?;
+        }
+        if let Some(p) = &args.variance {
+            write_image(p, width, height, &film.variance_of_mean())
+                .with_context(|| format!("writing {}", p.display()))?;
+        }
+        let software = if gpu.is_software() { " (a software device: its times are the CPU's)" } else { "" };
+        println!(
+            "{}: {} triangles, {} spheres | {build} | upload {upload_ms:.0} ms ({:.1} MiB) | GPU {}{software} | \
+             render {render_ms:.0} ms ({width}x{height}, {spp} spp, {:.1} ms per frame) | {:.2} Mrays/s",
+            args.scene,
+            geometry.triangle_count(),
+            geometry.spheres.len(),
+            uploaded.bytes as f64 / (1 << 20) as f64,
+            gpu.describe(),
+            render_ms / spp.max(1) as f64,
+            rays as f64 / (render_ms / 1e3) / 1e6,
+        );
+        println!("wrote {}", args.out.display());
+        Ok(())
+    }
+}

@@ -1,0 +1,67 @@
+//! `phr render --device gpu`: with the cargo feature `gpu` and an adapter (`.ci/run` installs
+//! lavapipe and runs the ignored test), the GPU renders the built-in scene with the CPU's
+//! random numbers, so its linear mean equals the CPU's pixel by pixel (but where rounding sent
+//! a path elsewhere); without the feature the flag is an error that says how to get it, and
+//! the estimators the GPU lacks are refused either way, before any output is written.
+
+mod common;
+
+use common::{phr_within, TempDir};
+use std::time::Duration;
+
+const IMPLICIT: [&str; 4] = ["--integrator", "implicit", "--denoiser", "none"];
+
+#[test]
+fn the_gpu_refuses_what_it_lacks_before_writing_anything() {
+    let dir = TempDir::new("gpu-refuses");
+    for extra in [&[][..], &["--integrator", "implicit"][..], &["--denoiser", "none"][..]] {
+        let mut args = vec!["render", "--device", "gpu", "--out", "x.png"];
+        args.extend_from_slice(extra);
+        let out = phr_within(&dir.0, &args, Duration::from_secs(60));
+        assert_ne!(out.code, Some(0), "{extra:?}");
+        assert!(out.stderr.contains("--integrator implicit --denoiser none"), "{}", out.stderr);
+        assert!(!dir.join("x.png").exists(), "no output");
+    }
+}
+
+#[cfg(not(feature = "gpu"))]
+#[test]
+fn without_the_feature_the_gpu_is_an_error_that_says_how_to_get_it() {
+    let dir = TempDir::new("gpu-missing");
+    let mut args = vec!["render", "--device", "gpu", "--out", "x.png"];
+    args.extend(IMPLICIT);
+    let out = phr_within(&dir.0, &args, Duration::from_secs(60));
+    assert_ne!(out.code, Some(0));
+    assert!(out.stderr.contains("--features gpu"), "{}", out.stderr);
+    assert!(!dir.join("x.png").exists(), "no output");
+}
+
+#[cfg(feature = "gpu")]
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn the_gpu_renders_the_cpu_s_samples() {
+    use common::Image;
+    let dir = TempDir::new("gpu-render");
+    let render = |device: &str| {
+        let mean = format!("{device}.pfm");
+        let mut args = vec!["--threads", "2", "render", "builtin", "--quiet", "--device", device, "--out", "out.png"];
+        args.extend(IMPLICIT);
+        args.extend(["--width", "48", "--height", "32", "--spp", "4", "--seed", "5", "--linear", &mean]);
+        let out = phr_within(&dir.0, &args, Duration::from_secs(300));
+        assert_eq!(out.code, Some(0), "{}", out.stderr);
+        (Image::pfm(&dir.join(&mean)), out.stdout)
+    };
+    let ((gpu, summary), (cpu, _)) = (render("gpu"), render("cpu"));
+    assert!(summary.contains("GPU ") && summary.contains("Mrays/s"), "{summary}");
+    assert_eq!((gpu.width, gpu.height), (48, 32));
+    assert!(gpu.rgb.iter().all(|v| v.is_finite() && *v >= 0.0));
+    let pixels: Vec<(&[f32], &[f32])> = cpu.rgb.chunks(3).zip(gpu.rgb.chunks(3)).collect();
+    let lit: Vec<_> = pixels.iter().filter(|(c, g)| c.iter().chain(g.iter()).any(|&v| v > 0.0)).collect();
+    let alike = lit
+        .iter()
+        .filter(|(c, g)| c.iter().zip(g.iter()).all(|(a, b)| (a - b).abs() <= 1e-3 * (1.0 + a.abs())))
+        .count();
+    println!("{alike} of {} lit pixels alike", lit.len());
+    assert!(lit.len() > pixels.len() / 10, "{} lit pixels of {}", lit.len(), pixels.len());
+    assert!(alike as f64 >= 0.95 * lit.len() as f64, "{alike} of {} lit pixels alike", lit.len());
+}
