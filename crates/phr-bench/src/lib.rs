@@ -21,6 +21,7 @@
 
 pub mod build_bench;
 pub mod cut_cost;
+pub mod device_report;
 pub mod embree_build;
 pub mod frame;
 pub mod frame_report;

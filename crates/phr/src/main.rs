@@ -5,6 +5,7 @@ mod animate;
 mod bench;
 mod bench_build;
 mod bench_cut_cost;
+mod bench_device;
 mod bench_frame;
 mod bench_quality;
 mod bench_rays;
@@ -43,6 +44,8 @@ enum Command {
     BenchBuild(bench_build::BenchBuildArgs),
     /// The thesis's frame on the suite, ours against Mitsuba 3 (llvm variant) in one run.
     BenchFrame(bench_frame::BenchFrameArgs),
+    /// The thesis's frame on the CPU and on the GPU (build, upload, frame per device), in one run.
+    BenchDevice(bench_device::BenchDeviceArgs),
     /// Image quality at equal time: RMSE of our estimators and Mitsuba 3's path tracer
     /// against converged references.
     BenchQuality(bench_quality::BenchQualityArgs),
@@ -95,6 +98,7 @@ fn main() -> ExitCode {
         Some(Command::Bench(args)) => bench::run(&args),
         Some(Command::BenchBuild(args)) => bench_build::run(&args),
         Some(Command::BenchFrame(args)) => bench_frame::run(&args),
+        Some(Command::BenchDevice(args)) => bench_device::run(&args),
         Some(Command::BenchQuality(args)) => bench_quality::run(&args),
         Some(Command::BenchRays(args)) => bench_rays::run(&args),
         Some(Command::BenchCutCost(args)) => bench_cut_cost::run(&args),
