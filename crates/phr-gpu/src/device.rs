@@ -203,7 +203,7 @@ impl Gpu {
 }
 
 /// How a kernel sees a buffer.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug)]
 pub(crate) enum Binding {
     Uniform,
     Read,

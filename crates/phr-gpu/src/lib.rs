@@ -7,15 +7,15 @@
 //!
 //! It traces what the CPU traces: [`scene::GpuScene`] uploads the triangles, spheres and
 //! materials of a [`phr_render::geometry::Geometry`] and the binary BVH any of `phr-bvh`'s
-//! builders made for it, with the primitives in leaf order. [`trace::GpuTracer`] runs the
-//! thesis's estimator (`phr_render::integrator`, implicit lights) one sample per pixel per
-//! frame, accumulating on the GPU, with the CPU's random numbers per pixel, so the two converge
-//! to the same image; [`queries::HitQueries`] answers closest-hit queries for a batch of
-//! rays, which the tests hold against the CPU's.
+//! builders made for it, with the primitives in leaf order, and the emitters of a light set.
+//! [`trace::GpuTracer`] runs the estimators of `phr_render::integrator` (the thesis's implicit
+//! lights, or light sampling with MIS and Russian roulette) one sample per pixel per frame,
+//! accumulating on the GPU, with the CPU's random numbers per pixel drawn in the CPU's order,
+//! so the two converge to the same image; [`queries::HitQueries`] answers closest-hit queries
+//! for a batch of rays, which the tests hold against the CPU's.
 //!
 //! Not yet on the GPU (each refused with a clear error, never drawn wrong): textures, alpha
-//! masks, environment maps, light sampling, meshes placed by instances, trees other than
-//! binary ones.
+//! masks, environment maps, meshes placed by instances, trees other than binary ones.
 
 pub mod device;
 pub mod queries;

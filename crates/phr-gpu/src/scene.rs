@@ -1,11 +1,13 @@
 //! The scene on the GPU: the binary BVH's nodes, the primitives in leaf order (so a leaf is a
-//! run of consecutive records, one 48-byte load each) and the materials, as storage buffers
-//! (`shaders/common.wgsl` reads them).
+//! run of consecutive records, one 48-byte load each), the materials and, for light sampling,
+//! the emitters of a [`LightSet`], as storage buffers (`shaders/common.wgsl` and
+//! `shaders/path.wgsl` read them).
 
 use crate::device::{Binding, Gpu, GpuError};
 use bytemuck::{Pod, Zeroable};
 use phr_bvh::{tree_stats, Bvh};
 use phr_render::geometry::Geometry;
+use phr_render::lights::LightSet;
 use phr_render::material::Material;
 use phr_render::scene::{Background, Scene};
 
@@ -27,7 +29,8 @@ pub struct GpuNode {
     pub hi: [f32; 4],
 }
 
-/// A primitive (see `Prim` in the shader).
+/// A primitive (see `Prim` in the shader). `c[3]`: the bits of its emitter's number plus one
+/// (0: not a light to sample).
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 #[repr(C)]
 pub struct GpuPrim {
@@ -44,29 +47,59 @@ pub struct GpuMaterial {
     pub b: [f32; 4],
 }
 
+/// An emitter to sample (see `Light` in `shaders/path.wgsl`): a triangle as its primitive
+/// record, a sphere as centre and radius; `a[3]` the bits of its material (with the sphere
+/// flag), `b[3]` its area, `c[3]` the probability of picking it.
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct GpuLight {
+    pub a: [f32; 4],
+    pub b: [f32; 4],
+    pub c: [f32; 4],
+}
+
 /// What is uploaded, laid out on the CPU (no GPU needed: the tests check it apart).
 #[derive(Clone, Debug, Default)]
 pub struct Packed {
     pub nodes: Vec<GpuNode>,
     pub prims: Vec<GpuPrim>,
     pub materials: Vec<GpuMaterial>,
+    /// The emitters of the light set, and its cumulative selection weights (both empty
+    /// without light sampling).
+    pub lights: Vec<GpuLight>,
+    pub light_cdf: Vec<f32>,
+    /// Probability of sampling the sky; `None`: no light sampling (the implicit estimator).
+    pub sky_probability: Option<f32>,
 }
 
 impl Packed {
-    /// Lays out `geometry` (its primitives and the binary tree of [`Geometry::bvh`]) and the
-    /// materials of `scene`. Refuses what the kernels cannot draw yet rather than drawing it
-    /// wrong.
-    pub fn new(scene: &Scene, geometry: &Geometry) -> Result<Self, GpuError> {
+    /// Lays out `geometry` (its primitives and the binary tree of [`Geometry::bvh`]), the
+    /// materials of `scene` and, for light sampling, `lights` (made for `geometry`). Refuses
+    /// what the kernels cannot draw yet rather than drawing it wrong.
+    pub fn new(scene: &Scene, geometry: &Geometry, lights: Option<&LightSet>) -> Result<Self, GpuError> {
         check_supported(scene, geometry)?;
         let bvh = geometry.bvh();
         check_tree(bvh)?;
         let n_tris = geometry.triangles.len();
+        // Each emitter's number plus one, by primitive.
+        let mut emitter_of = std::collections::HashMap::new();
+        let mut gpu_lights = Vec::new();
+        for (k, (p, area, selection)) in lights.iter().flat_map(|l| l.emitters()).enumerate() {
+            emitter_of.insert(p, k as u32 + 1);
+            let GpuPrim { a, b, c } = prim_record(geometry, n_tris, p);
+            let b = if (p as usize) < n_tris { [b[0], b[1], b[2], area] } else { [b[0], 0.0, 0.0, area] };
+            gpu_lights.push(GpuLight { a, b, c: [c[0], c[1], c[2], selection] });
+        }
         let mut nodes = Vec::with_capacity(bvh.nodes.len());
         let mut prims = Vec::with_capacity(bvh.prim_indices.len());
         for node in &bvh.nodes {
             let first = if node.is_leaf() {
                 let start = prims.len() as u32;
-                prims.extend(bvh.leaf_prims(node).iter().map(|&p| prim_record(geometry, n_tris, p)));
+                prims.extend(bvh.leaf_prims(node).iter().map(|&p| {
+                    let mut record = prim_record(geometry, n_tris, p);
+                    record.c[3] = f32::from_bits(emitter_of.get(&p).copied().unwrap_or(0));
+                    record
+                }));
                 start
             } else {
                 node.first
@@ -82,7 +115,14 @@ impl Packed {
             nodes.push(GpuNode { lo: [0.0; 4], hi: [0.0; 4] });
         }
         let materials = scene.materials.iter().map(material_record).collect();
-        Ok(Self { nodes, prims, materials })
+        Ok(Self {
+            nodes,
+            prims,
+            materials,
+            lights: gpu_lights,
+            light_cdf: lights.map_or(Vec::new(), |l| l.cdf().to_vec()),
+            sky_probability: lights.map(LightSet::sky_probability),
+        })
     }
 }
 
@@ -162,6 +202,9 @@ pub struct GpuScene {
     pub(crate) layout: wgpu::BindGroupLayout,
     pub(crate) group: wgpu::BindGroup,
     pub background: Background,
+    /// Light sampling: the sky's probability and the number of emitters that can be picked
+    /// (`None`: the implicit estimator).
+    pub(crate) lights: Option<(f32, u32)>,
     /// Bytes uploaded (nodes, primitives, materials).
     pub bytes: u64,
     pub prim_count: usize,
@@ -169,8 +212,8 @@ pub struct GpuScene {
 
 impl GpuScene {
     /// Uploads what [`Packed::new`] lays out.
-    pub fn upload(gpu: &Gpu, scene: &Scene, geometry: &Geometry) -> Result<Self, GpuError> {
-        Self::upload_packed(gpu, &Packed::new(scene, geometry)?, scene.background.clone())
+    pub fn upload(gpu: &Gpu, scene: &Scene, geometry: &Geometry, lights: Option<&LightSet>) -> Result<Self, GpuError> {
+        Self::upload_packed(gpu, &Packed::new(scene, geometry, lights)?, scene.background.clone())
     }
 
     pub fn upload_packed(gpu: &Gpu, packed: &Packed, background: Background) -> Result<Self, GpuError> {
@@ -178,11 +221,16 @@ impl GpuScene {
         let nodes = gpu.storage("BVH nodes", bytemuck::cast_slice(&packed.nodes), none)?;
         let prims = gpu.storage("primitives", bytemuck::cast_slice(&packed.prims), none)?;
         let materials = gpu.storage("materials", bytemuck::cast_slice(&packed.materials), none)?;
-        let layout = gpu.layout("scene", &[Binding::Read, Binding::Read, Binding::Read]);
-        let group = gpu.bind("scene", &layout, &[&nodes, &prims, &materials]);
+        let lights = gpu.storage("lights", bytemuck::cast_slice(&packed.lights), none)?;
+        let cdf = gpu.storage("light cdf", bytemuck::cast_slice(&packed.light_cdf), none)?;
+        let layout = gpu.layout("scene", &[Binding::Read; 5]);
+        let group = gpu.bind("scene", &layout, &[&nodes, &prims, &materials, &lights, &cdf]);
         let bytes = (size_of_val(&packed.nodes[..])
             + size_of_val(&packed.prims[..])
-            + size_of_val(&packed.materials[..])) as u64;
-        Ok(Self { layout, group, background, bytes, prim_count: packed.prims.len() })
+            + size_of_val(&packed.materials[..])
+            + size_of_val(&packed.lights[..])
+            + size_of_val(&packed.light_cdf[..])) as u64;
+        let lights = packed.sky_probability.map(|sky| (sky, packed.light_cdf.len() as u32));
+        Ok(Self { layout, group, background, lights, bytes, prim_count: packed.prims.len() })
     }
 }

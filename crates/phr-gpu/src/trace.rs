@@ -11,6 +11,7 @@ use phr_render::film::Film;
 use phr_render::scene::Background;
 
 const PATH_WGSL: &str = include_str!("shaders/path.wgsl");
+const LIGHTS_WGSL: &str = include_str!("shaders/lights.wgsl");
 /// The kernel's workgroup is 8 × 8 pixels.
 const GROUP: u32 = 8;
 
@@ -20,6 +21,7 @@ const GROUP: u32 = 8;
 struct FrameUniform {
     size: [u32; 4],
     seed: [u32; 4],
+    light: [f32; 4],
     origin: [f32; 4],
     forward: [f32; 4],
     horizontal: [f32; 4],
@@ -51,7 +53,8 @@ pub struct GpuTracer<'a> {
 
 impl<'a> GpuTracer<'a> {
     /// The renderer of `scene` seen by `camera` (made for `width × height`), paths of at most
-    /// `max_depth` segments, random numbers of `seed` (the CPU's for the same seed).
+    /// `max_depth` segments, random numbers of `seed` (the CPU's for the same seed); with light
+    /// sampling if `scene` was uploaded with a light set.
     pub fn new(
         gpu: &'a Gpu,
         scene: &'a GpuScene,
@@ -69,7 +72,11 @@ impl<'a> GpuTracer<'a> {
         };
         let uniform = FrameUniform {
             size: [width, height, 0, max_depth],
-            seed: [seed as u32, (seed >> 32) as u32, kind, 0],
+            seed: [seed as u32, (seed >> 32) as u32, kind, u32::from(scene.lights.is_some())],
+            light: match scene.lights {
+                Some((sky, emitters)) => [sky, f32::from_bits(emitters), 0.0, 0.0],
+                None => [0.0; 4],
+            },
             origin: lanes(basis.origin),
             forward: lanes(basis.forward),
             horizontal: lanes(basis.horizontal),
@@ -92,7 +99,7 @@ impl<'a> GpuTracer<'a> {
         let layout =
             gpu.layout("path tracer", &[Binding::Uniform, Binding::ReadWrite, Binding::ReadWrite, Binding::ReadWrite]);
         let group = gpu.bind("path tracer", &layout, &[&frame, &sum, &sum_sq, &rays]);
-        let source = format!("{COMMON_WGSL}\n{PATH_WGSL}");
+        let source = format!("{COMMON_WGSL}\n{PATH_WGSL}\n{LIGHTS_WGSL}");
         let pipeline = gpu.pipeline("path tracer", &source, "render", &[&scene.layout, &layout]);
         Ok(Self { gpu, scene, pipeline, group, frame, sum, sum_sq, rays, uniform, width, height, samples: 0 })
     }

@@ -149,6 +149,24 @@ impl LightSet {
         self.sky.is_some()
     }
 
+    /// Each emitting primitive with its area and the probability [`LightSet::sample`] picks
+    /// it, in the order of [`LightSet::cdf`]: what a tracer elsewhere (the GPU's) needs to
+    /// sample the same way.
+    pub fn emitters(&self) -> impl Iterator<Item = (u32, f32, f32)> + '_ {
+        self.prims.iter().zip(&self.emitters).enumerate().map(|(k, (&p, e))| (p, e.area, self.selection(k)))
+    }
+
+    /// The cumulative selection weights [`LightSet::sample`] searches (empty: no emitter
+    /// can be picked).
+    pub fn cdf(&self) -> &[f32] {
+        &self.cdf
+    }
+
+    /// Probability of sampling the sky rather than an emitter.
+    pub fn sky_probability(&self) -> f32 {
+        self.sky_probability
+    }
+
     /// Whether primitive `prim` is a light that can be picked.
     pub fn contains(&self, prim: u32) -> bool {
         self.emitter(prim).is_some_and(|k| self.selection(k) > 0.0)

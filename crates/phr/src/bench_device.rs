@@ -158,7 +158,7 @@ mod gpu {
         let mut uploaded = None;
         for _ in 0..3 {
             let start = Instant::now();
-            let scene = match GpuScene::upload(gpu, scene, geometry) {
+            let scene = match GpuScene::upload(gpu, scene, geometry, None) {
                 Ok(s) => s,
                 Err(e) => return Ok(GpuRun::Skipped(e.to_string())),
             };

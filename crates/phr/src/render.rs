@@ -86,8 +86,8 @@ pub struct RenderArgs {
     pub tracing: Tracing,
     /// Where to trace: `cpu`, or `gpu` (the WGSL path tracer of crates/phr-gpu on any Vulkan,
     /// Metal or DX12 adapter, Mesa's lavapipe included; build with `--features gpu`). The GPU
-    /// traces the builder's binary tree with the thesis's estimator (`--integrator implicit
-    /// --denoiser none`).
+    /// traces the builder's binary tree, with either estimator and no denoiser yet
+    /// (`--denoiser none`).
     #[arg(long, value_enum, default_value = "cpu")]
     pub device: Device,
 }

@@ -2,17 +2,14 @@
 //! the cargo feature `gpu`. The CPU builds the tree, the GPU traces and accumulates; the
 //! outputs are the CPU render's (mean, linear mean, variance of the mean).
 
-use crate::render::{prepare, Denoiser, Integrator, RenderArgs};
+use crate::render::{prepare, Denoiser, RenderArgs};
 use anyhow::{bail, Result};
 use phr_render::camera::CameraDesc;
 use phr_render::scene::{RenderSettings, Scene};
 
 pub fn run(args: &RenderArgs) -> Result<()> {
-    if args.integrator != Integrator::Implicit || args.denoiser != Denoiser::None {
-        bail!(
-            "--device gpu: the GPU tracer has the thesis's estimator (implicit lights) and no denoiser yet: \
-             add `--integrator implicit --denoiser none`"
-        );
+    if args.denoiser != Denoiser::None {
+        bail!("--device gpu: the GPU tracer has no denoiser yet: add `--denoiser none`");
     }
     if args.heatmap.is_some() || args.albedo.is_some() {
         bail!("--device gpu writes no heatmap and no albedo guide yet");
@@ -39,11 +36,12 @@ mod imp {
 #[cfg(feature = "gpu")]
 mod imp {
     use super::*;
-    use crate::render::describe_build;
+    use crate::render::{describe_build, Integrator};
     use anyhow::Context;
     use phr_gpu::{Gpu, GpuScene, GpuTracer};
     use phr_render::camera::Camera;
     use phr_render::geometry::Geometry;
+    use phr_render::lights::LightSet;
     use phr_render::output::write_image;
     use std::time::Instant;
 
@@ -61,7 +59,9 @@ mod imp {
         geometry.set_bvh(report.bvh);
 
         let start = Instant::now();
-        let uploaded = GpuScene::upload(&gpu, &scene, &geometry)?;
+        let lights = (args.integrator == Integrator::Path)
+            .then(|| LightSet::new(&geometry, &scene.materials, &scene.background));
+        let uploaded = GpuScene::upload(&gpu, &scene, &geometry, lights.as_ref())?;
         let mut tracer =
             GpuTracer::new(&gpu, &uploaded, &Camera::new(view, width, height), width, height, max_depth, args.seed)?;
         gpu.wait()?;

@@ -235,9 +235,19 @@ fn test_prim(slot: u32, ray: ptr<function, Ray>, best: ptr<function, Hit>) {
     }
 }
 
-// The closest hit of `ray0` (slot NO_HIT: none): near child first, the far one on a stack
-// with its entry distance, skipped once a closer hit is known.
-fn closest_hit(ray0: Ray) -> Hit {
+// The closest hit of `ray` (slot NO_HIT: none).
+fn closest_hit(ray: Ray) -> Hit {
+    return traverse(ray, false);
+}
+
+// Whether anything lies on `ray` within (tmin, tmax]: a shadow ray's query.
+fn any_hit(ray: Ray) -> bool {
+    return traverse(ray, true).slot != NO_HIT;
+}
+
+// The closest hit of `ray0`, or with `stop_at_first` the first found: near child first, the far one on
+// a stack with its entry distance, skipped once a closer hit is known.
+fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
     var ray = ray0;
     var best = Hit(INFINITY, 0.0, 0.0, NO_HIT, NO_HIT);
     if box_entry(nodes[0], ray) == INFINITY {
@@ -255,6 +265,9 @@ fn closest_hit(ray0: Ray) -> Hit {
         if (count & INTERIOR) == 0u {
             for (var i = 0u; i < count; i++) {
                 test_prim(first + i, &ray, &best);
+                if stop_at_first && best.slot != NO_HIT {
+                    return best;
+                }
             }
         } else {
             let d0 = box_entry(nodes[first], ray);

@@ -1,14 +1,18 @@
-// The thesis's path tracer (`phr_render::integrator`, the implicit estimator): one path per
-// pixel per dispatch, BSDF sampling only, at most `max_depth` segments, the materials of
-// `phr_render::material`. Each pixel's random numbers are the CPU's (`Pcg32::for_pixel`,
-// `Pcg32::pixel_jitter`), so the two converge to the same image; adds the sample and its
-// square to the accumulation buffers.
+// The path tracer of `phr_render::integrator`, one path per pixel per dispatch, at most
+// `max_depth` segments, the materials of `phr_render::material`: the thesis's estimator
+// (implicit lights, BSDF sampling only), or light sampling with MIS and Russian roulette
+// (`LightSet` of `phr_render::lights`, the CPU's `advance_with_lights` step by step). Each
+// pixel's random numbers are the CPU's (`Pcg32::for_pixel`, `Pcg32::pixel_jitter`), drawn in
+// the same order, so the two converge to the same image; adds the sample and its square to the
+// accumulation buffers.
 
 struct Frame {
     // width, height, frame number, max_depth
     size: vec4<u32>,
-    // seed (low, high), background kind (0 constant, 1 gradient), unused
+    // seed (low, high), background kind (0 constant, 1 gradient), 1 for light sampling
     seed: vec4<u32>,
+    // Light sampling: the sky's probability, the bits of the number of emitters to pick from.
+    light: vec4<f32>,
     origin: vec4<f32>,
     forward: vec4<f32>,
     horizontal: vec4<f32>,
@@ -30,10 +34,23 @@ const LAMBERTIAN: u32 = 0u;
 const METAL: u32 = 1u;
 const DIELECTRIC: u32 = 2u;
 const EMISSIVE: u32 = 3u;
+const RR_START: u32 = 3u;
+const FRAC_1_PI: f32 = 0.3183098861837907;
 const TRIANGLE_OFFSET: f32 = 1.0e-6;
 const SPHERE_OFFSET: f32 = 1500.0 / 16777216.0;
 
+// An emitter (`GpuLight`): a triangle (`a` = v0, `b` = e1, `c` = e2) or a sphere (`a` =
+// centre, `b.x` = radius); `a.w` the bits of its material with SPHERE for spheres, `b.w` its
+// area, `c.w` the probability of picking it.
+struct Light {
+    a: vec4<f32>,
+    b: vec4<f32>,
+    c: vec4<f32>,
+}
+
 @group(0) @binding(2) var<storage, read> materials: array<Material>;
+@group(0) @binding(3) var<storage, read> lights: array<Light>;
+@group(0) @binding(4) var<storage, read> light_cdf: array<f32>;
 @group(1) @binding(0) var<uniform> frame: Frame;
 @group(1) @binding(1) var<storage, read_write> sum: array<vec4<f32>>;
 @group(1) @binding(2) var<storage, read_write> sum_sq: array<vec4<f32>>;
@@ -88,6 +105,8 @@ struct Surface {
     front: bool,
     material: u32,
     offset: f32,
+    // The emitter's number plus one (0: not a light to sample).
+    emitter: u32,
 }
 
 fn surface_at(ray: Ray, hit: Hit) -> Surface {
@@ -111,7 +130,7 @@ fn surface_at(ray: Ray, hit: Hit) -> Surface {
     let front = dot(ray.dir, n) < 0.0;
     let ap = abs(p);
     let offset = rel * (1.0 + max(max(ap.x, ap.y), ap.z));
-    return Surface(p, n, front, bits & ~SPHERE, offset);
+    return Surface(p, n, front, bits & ~SPHERE, offset, bitcast<u32>(prim.c.w));
 }
 
 fn spawn_origin(s: Surface, dir: vec3<f32>) -> vec3<f32> {
@@ -176,6 +195,38 @@ fn emitted(m: Material, front: bool) -> vec3<f32> {
     return vec3<f32>(0.0);
 }
 
+// What a path gathered and how many rays it traced.
+struct PathSample {
+    radiance: vec3<f32>,
+    rays: u32,
+}
+
+// The thesis's estimator: BSDF sampling alone (`advance_implicit`).
+fn trace_implicit(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
+    var ray = camera_ray;
+    var radiance = vec3<f32>(0.0);
+    var throughput = vec3<f32>(1.0);
+    var rays = 0u;
+    for (var segment = 0u; segment < frame.size.w; segment++) {
+        rays++;
+        let hit = closest_hit(ray);
+        if hit.slot == NO_HIT {
+            radiance += throughput * sky(normalize(ray.dir));
+            break;
+        }
+        let surface = surface_at(ray, hit);
+        let m = materials[surface.material];
+        radiance += throughput * emitted(m, surface.front);
+        let s = scatter(m, ray.dir, surface.normal, surface.front, rng);
+        if s.weight.w == 0.0 {
+            break;
+        }
+        throughput *= s.weight.xyz;
+        ray = make_ray(spawn_origin(surface, s.dir), s.dir, 0.0, INFINITY);
+    }
+    return PathSample(radiance, rays);
+}
+
 @compute @workgroup_size(8, 8)
 fn render(@builtin(global_invocation_id) id: vec3<u32>) {
     let width = frame.size.x;
@@ -190,31 +241,18 @@ fn render(@builtin(global_invocation_id) id: vec3<u32>) {
     let sx = 2.0 * (f32(id.x) + jitter.x) / f32(width) - 1.0;
     let sy = 2.0 * (f32(id.y) + jitter.y) / f32(height) - 1.0;
     let camera_dir = normalize(frame.forward.xyz + sx * frame.horizontal.xyz - sy * frame.vertical.xyz);
-    var ray = make_ray(frame.origin.xyz, camera_dir, 0.0, INFINITY);
-    var radiance = vec3<f32>(0.0);
-    var throughput = vec3<f32>(1.0);
-    var rays = 0u;
-    for (var segment = 0u; segment < frame.size.w; segment++) {
-        rays++;
-        let hit = closest_hit(ray);
-        if hit.slot == NO_HIT {
-            radiance += throughput * sky(normalize(ray.dir));
-            break;
-        }
-        let surface = surface_at(ray, hit);
-        let m = materials[surface.material];
-        radiance += throughput * emitted(m, surface.front);
-        let s = scatter(m, ray.dir, surface.normal, surface.front, &rng);
-        if s.weight.w == 0.0 {
-            break;
-        }
-        throughput *= s.weight.xyz;
-        ray = make_ray(spawn_origin(surface, s.dir), s.dir, 0.0, INFINITY);
+    let ray = make_ray(frame.origin.xyz, camera_dir, 0.0, INFINITY);
+    var sample: PathSample;
+    if frame.seed.w == 0u {
+        sample = trace_implicit(ray, &rng);
+    } else {
+        sample = trace_with_lights(ray, &rng);
     }
+    let radiance = sample.radiance;
     sum[pixel] += vec4<f32>(radiance, 0.0);
     sum_sq[pixel] += vec4<f32>(radiance * radiance, 0.0);
-    let low = atomicAdd(&ray_count[0], rays);
-    if low + rays < low {
+    let low = atomicAdd(&ray_count[0], sample.rays);
+    if low + sample.rays < low {
         atomicAdd(&ray_count[1], 1u);
     }
 }
