@@ -10,6 +10,7 @@ use phr_render::geometry::Geometry;
 use phr_render::lights::LightSet;
 use phr_render::material::Material;
 use phr_render::scene::{Background, Scene};
+use rayon::prelude::*;
 
 /// The kernels' traversal stack (`STACK` in `shaders/common.wgsl`): a binary tree deeper than
 /// this is refused.
@@ -77,39 +78,52 @@ impl Packed {
     /// materials of `scene` and, for light sampling, `lights` (made for `geometry`). Refuses
     /// what the kernels cannot draw yet rather than drawing it wrong.
     pub fn new(scene: &Scene, geometry: &Geometry, lights: Option<&LightSet>) -> Result<Self, GpuError> {
+        Self::with_tree(scene, geometry, geometry.bvh(), lights)
+    }
+
+    /// [`Packed::new`] with `bvh` over `geometry`'s primitives instead of the one it holds:
+    /// a moving scene's tree, rebuilt for the GPU alone (no wide tree for the CPU).
+    pub fn with_tree(
+        scene: &Scene,
+        geometry: &Geometry,
+        bvh: &Bvh,
+        lights: Option<&LightSet>,
+    ) -> Result<Self, GpuError> {
         check_supported(scene, geometry)?;
-        let bvh = geometry.bvh();
         check_tree(bvh)?;
         let n_tris = geometry.triangles.len();
-        // Each emitter's number plus one, by primitive.
-        let mut emitter_of = std::collections::HashMap::new();
+        // Each emitter's number plus one, by primitive (empty without light sampling).
+        let mut emitter_of = Vec::new();
         let mut gpu_lights = Vec::new();
         for (k, (p, area, selection)) in lights.iter().flat_map(|l| l.emitters()).enumerate() {
-            emitter_of.insert(p, k as u32 + 1);
+            emitter_of.resize(emitter_of.len().max(p as usize + 1), 0);
+            emitter_of[p as usize] = k as u32 + 1;
             let GpuPrim { a, b, c } = prim_record(geometry, n_tris, p);
             let b = if (p as usize) < n_tris { [b[0], b[1], b[2], area] } else { [b[0], 0.0, 0.0, area] };
             gpu_lights.push(GpuLight { a, b, c: [c[0], c[1], c[2], selection] });
         }
-        let mut nodes = Vec::with_capacity(bvh.nodes.len());
-        let mut prims = Vec::with_capacity(bvh.prim_indices.len());
-        for node in &bvh.nodes {
-            let first = if node.is_leaf() {
-                let start = prims.len() as u32;
-                prims.extend(bvh.leaf_prims(node).iter().map(|&p| {
-                    let mut record = prim_record(geometry, n_tris, p);
-                    record.c[3] = f32::from_bits(emitter_of.get(&p).copied().unwrap_or(0));
-                    record
-                }));
-                start
-            } else {
-                node.first
-            };
-            let (lo, hi) = (node.bounds.min, node.bounds.max);
-            nodes.push(GpuNode {
-                lo: [lo.x, lo.y, lo.z, f32::from_bits(first)],
-                hi: [hi.x, hi.y, hi.z, f32::from_bits(node.count)],
-            });
-        }
+        // A leaf's primitives are a run of `prim_indices` already: the records keep its order,
+        // and the nodes their links.
+        let prims: Vec<GpuPrim> = bvh
+            .prim_indices
+            .par_iter()
+            .map(|&p| {
+                let mut record = prim_record(geometry, n_tris, p);
+                record.c[3] = f32::from_bits(emitter_of.get(p as usize).copied().unwrap_or(0));
+                record
+            })
+            .collect();
+        let mut nodes: Vec<GpuNode> = bvh
+            .nodes
+            .par_iter()
+            .map(|node| {
+                let (lo, hi) = (node.bounds.min, node.bounds.max);
+                GpuNode {
+                    lo: [lo.x, lo.y, lo.z, f32::from_bits(node.first)],
+                    hi: [hi.x, hi.y, hi.z, f32::from_bits(node.count)],
+                }
+            })
+            .collect();
         if nodes.is_empty() {
             // Nothing to hit: a root leaf of no primitives.
             nodes.push(GpuNode { lo: [0.0; 4], hi: [0.0; 4] });
@@ -201,13 +215,28 @@ fn check_tree(bvh: &Bvh) -> Result<(), GpuError> {
 pub struct GpuScene {
     pub(crate) layout: wgpu::BindGroupLayout,
     pub(crate) group: wgpu::BindGroup,
+    /// Nodes, primitives, materials, lights, light weights: the group's bindings in order.
+    buffers: [wgpu::Buffer; 5],
     pub background: Background,
     /// Light sampling: the sky's probability and the number of emitters that can be picked
     /// (`None`: the implicit estimator).
     pub(crate) lights: Option<(f32, u32)>,
-    /// Bytes uploaded (nodes, primitives, materials).
+    /// Bytes of the last upload (all of it, or what [`GpuScene::update`] wrote).
     pub bytes: u64,
     pub prim_count: usize,
+}
+
+const BUFFER_NAMES: [&str; 5] = ["BVH nodes", "primitives", "materials", "lights", "light weights"];
+
+/// The bytes of each buffer of [`GpuScene`], in binding order.
+fn contents(packed: &Packed) -> [&[u8]; 5] {
+    [
+        bytemuck::cast_slice(&packed.nodes),
+        bytemuck::cast_slice(&packed.prims),
+        bytemuck::cast_slice(&packed.materials),
+        bytemuck::cast_slice(&packed.lights),
+        bytemuck::cast_slice(&packed.light_cdf),
+    ]
 }
 
 impl GpuScene {
@@ -217,20 +246,44 @@ impl GpuScene {
     }
 
     pub fn upload_packed(gpu: &Gpu, packed: &Packed, background: Background) -> Result<Self, GpuError> {
-        let none = wgpu::BufferUsages::empty();
-        let nodes = gpu.storage("BVH nodes", bytemuck::cast_slice(&packed.nodes), none)?;
-        let prims = gpu.storage("primitives", bytemuck::cast_slice(&packed.prims), none)?;
-        let materials = gpu.storage("materials", bytemuck::cast_slice(&packed.materials), none)?;
-        let lights = gpu.storage("lights", bytemuck::cast_slice(&packed.lights), none)?;
-        let cdf = gpu.storage("light cdf", bytemuck::cast_slice(&packed.light_cdf), none)?;
+        let data = contents(packed);
+        let mut buffers = Vec::with_capacity(5);
+        for (name, bytes) in BUFFER_NAMES.iter().zip(data) {
+            buffers.push(gpu.storage(name, bytes, wgpu::BufferUsages::COPY_DST)?);
+        }
+        let buffers: [wgpu::Buffer; 5] = buffers.try_into().expect("five buffers");
         let layout = gpu.layout("scene", &[Binding::Read; 5]);
-        let group = gpu.bind("scene", &layout, &[&nodes, &prims, &materials, &lights, &cdf]);
-        let bytes = (size_of_val(&packed.nodes[..])
-            + size_of_val(&packed.prims[..])
-            + size_of_val(&packed.materials[..])
-            + size_of_val(&packed.lights[..])
-            + size_of_val(&packed.light_cdf[..])) as u64;
+        let group = gpu.bind("scene", &layout, &buffers.each_ref());
+        let bytes = data.iter().map(|d| d.len() as u64).sum();
         let lights = packed.sky_probability.map(|sky| (sky, packed.light_cdf.len() as u32));
-        Ok(Self { layout, group, background, lights, bytes, prim_count: packed.prims.len() })
+        Ok(Self { layout, group, buffers, background, lights, bytes, prim_count: packed.prims.len() })
+    }
+
+    /// Replaces the scene's contents with `packed` (the same scene moved: its tree, primitives
+    /// and lights), writing into the buffers there are where the new contents fit and making
+    /// larger ones where they do not; the materials are the same and are not written. Returns
+    /// without waiting for the GPU.
+    pub fn update(&mut self, gpu: &Gpu, packed: &Packed) -> Result<(), GpuError> {
+        let mut rebound = false;
+        let mut bytes = 0;
+        for (k, data) in contents(packed).into_iter().enumerate() {
+            if k == 2 {
+                continue;
+            }
+            if data.len() as u64 <= self.buffers[k].size() {
+                gpu.queue.write_buffer(&self.buffers[k], 0, data);
+            } else {
+                self.buffers[k] = gpu.storage(BUFFER_NAMES[k], data, wgpu::BufferUsages::COPY_DST)?;
+                rebound = true;
+            }
+            bytes += data.len() as u64;
+        }
+        if rebound {
+            self.group = gpu.bind("scene", &self.layout, &self.buffers.each_ref());
+        }
+        self.bytes = bytes;
+        self.prim_count = packed.prims.len();
+        self.lights = packed.sky_probability.map(|sky| (sky, packed.light_cdf.len() as u32));
+        Ok(())
     }
 }

@@ -37,7 +37,6 @@ fn lanes(v: Vec3) -> [f32; 4] {
 /// The GPU's renderer of one view of a [`GpuScene`], at one size, depth and seed.
 pub struct GpuTracer<'a> {
     gpu: &'a Gpu,
-    scene: &'a GpuScene,
     pipeline: wgpu::ComputePipeline,
     group: wgpu::BindGroup,
     frame: wgpu::Buffer,
@@ -57,7 +56,7 @@ impl<'a> GpuTracer<'a> {
     /// sampling if `scene` was uploaded with a light set.
     pub fn new(
         gpu: &'a Gpu,
-        scene: &'a GpuScene,
+        scene: &GpuScene,
         camera: &Camera,
         width: u32,
         height: u32,
@@ -101,12 +100,16 @@ impl<'a> GpuTracer<'a> {
         let group = gpu.bind("path tracer", &layout, &[&frame, &sum, &sum_sq, &rays]);
         let source = format!("{COMMON_WGSL}\n{PATH_WGSL}\n{LIGHTS_WGSL}");
         let pipeline = gpu.pipeline("path tracer", &source, "render", &[&scene.layout, &layout]);
-        Ok(Self { gpu, scene, pipeline, group, frame, sum, sum_sq, rays, uniform, width, height, samples: 0 })
+        Ok(Self { gpu, pipeline, group, frame, sum, sum_sq, rays, uniform, width, height, samples: 0 })
     }
 
-    /// Submits frames `frames` (one sample per pixel each; frame `k` gives every pixel the
-    /// sample the CPU's frame `k` gives it, up to rounding) and returns without waiting.
-    pub fn render(&mut self, frames: std::ops::Range<u32>) {
+    /// Submits frames `frames` of `scene` (the one the tracer was made for, or that scene
+    /// moved: [`GpuScene::update`]), one sample per pixel each (frame `k` gives every pixel the
+    /// sample the CPU's frame `k` gives it, up to rounding), and returns without waiting.
+    pub fn render(&mut self, scene: &GpuScene, frames: std::ops::Range<u32>) {
+        if let Some((sky, emitters)) = scene.lights {
+            self.uniform.light = [sky, f32::from_bits(emitters), 0.0, 0.0];
+        }
         for k in frames {
             self.uniform.size[2] = k;
             // Takes effect before the next submission: each frame sees its own number.
@@ -115,7 +118,7 @@ impl<'a> GpuTracer<'a> {
             {
                 let mut pass = encoder.begin_compute_pass(&Default::default());
                 pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &self.scene.group, &[]);
+                pass.set_bind_group(0, &scene.group, &[]);
                 pass.set_bind_group(1, &self.group, &[]);
                 pass.dispatch_workgroups(self.width.div_ceil(GROUP), self.height.div_ceil(GROUP), 1);
             }

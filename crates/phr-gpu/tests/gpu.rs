@@ -222,7 +222,7 @@ fn frames_equal_the_cpu_pixel_by_pixel() {
             for frame in [0, 7] {
                 let (w, h) = (settings.width, settings.height);
                 let mut tracer = GpuTracer::new(gpu, &uploaded, &camera, w, h, settings.max_depth, 99).unwrap();
-                tracer.render(frame..frame + 1);
+                tracer.render(&uploaded, frame..frame + 1);
                 let gpu_pixels = tracer.film().unwrap().mean();
                 let cpu_pixels = cpu.render_frame(frame).0;
                 // Black samples (paths that never reached a light) agree whatever the random
@@ -263,7 +263,7 @@ fn images_match_the_mitsuba_references() {
             let (w, h) = (scene.settings.width, scene.settings.height);
             let camera = Camera::new(&scene.view(None).unwrap(), w, h);
             let mut tracer = GpuTracer::new(gpu, &uploaded, &camera, w, h, scene.settings.max_depth, 12345).unwrap();
-            tracer.render(0..SPP);
+            tracer.render(&uploaded, 0..SPP);
             let film = tracer.film().unwrap();
             assert_eq!(film.samples, SPP);
             let out = std::env::temp_dir().join(format!("phr-gpu-{name}-{sampled}-{}.pfm", std::process::id()));
@@ -281,5 +281,45 @@ fn images_match_the_mitsuba_references() {
             println!("{name}, {SPP} spp on the GPU, light sampling {sampled}:\n{text}");
             assert!(passed, "{name} on the GPU (light sampling {sampled}) does not match the reference:\n{text}");
         }
+    }
+}
+
+/// A scene uploaded over another ([`GpuScene::update`]): the hits are the new scene's, both
+/// where its contents need larger buffers (the bunny over the Cornell box) and where they fit
+/// the ones there are (the bunny moved, rebuilt by PHR, then by the SBVH).
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn an_updated_scene_is_the_moved_one() {
+    let gpu = gpu();
+    let small = reference_scene("cornell_obj");
+    let mut uploaded = GpuScene::upload(gpu, &small, &built(&small, &Builder::default()), None).unwrap();
+    let queries = HitQueries::new(gpu, &uploaded);
+    let scene = reference_scene("bunny_sky");
+    let mut geometry = built(&scene, &Builder::PHR_FAST);
+    let rays = probe_rays(&scene, 20_000);
+    let shift = Vec3::new(0.01, 0.02, -0.01);
+    let builders = [Builder::PHR_FAST, Builder::PHR_FAST, "sbvh".parse().unwrap()];
+    for (step, builder) in builders.into_iter().enumerate() {
+        if step > 0 {
+            for t in &mut geometry.triangles {
+                *t = t.map(|v| v + shift);
+            }
+        }
+        geometry.update_boxes();
+        let bvh = geometry.build_report(&builder).bvh;
+        let packed = Packed::with_tree(&scene, &geometry, &bvh, None).unwrap();
+        uploaded.update(gpu, &packed).unwrap();
+        geometry.set_bvh(bvh);
+        let hits = queries.closest_hits(gpu, &uploaded, &rays).unwrap();
+        let mismatches = rays
+            .iter()
+            .zip(&hits)
+            .filter(|(ray, g)| match (geometry.intersect(ray), g) {
+                (None, None) => false,
+                (Some(c), Some(g)) => c.prim != g.prim && (c.t - g.t).abs() > 1e-5 * c.t,
+                _ => true,
+            })
+            .count();
+        assert_eq!(mismatches, 0, "update {step} ({builder}): {mismatches} rays disagree");
     }
 }

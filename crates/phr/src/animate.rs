@@ -12,6 +12,7 @@ use clap::{Args, ValueEnum};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use phr_bvh::Builder;
+use phr_render::camera::CameraDesc;
 use phr_render::motion::{Animation, AnimationTarget, Motion as VertexMotion, ObjectAnimation};
 use phr_render::output::{write_atomically, write_image};
 use phr_render::pipeline::{FramePipeline, FrameReport, PipelineSettings, ViewMode};
@@ -20,7 +21,7 @@ use std::io::Write;
 use std::path::PathBuf;
 
 /// Animation time per frame, in seconds.
-const FRAME_DT: f32 = 1.0 / 30.0;
+pub(crate) const FRAME_DT: f32 = 1.0 / 30.0;
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum Motion {
@@ -37,35 +38,42 @@ pub struct AnimateArgs {
     /// A scene file (.json), a mesh (.obj, .ply, .gltf, .glb, optionally .gz), `builtin`, or a
     /// scene of scenes/suite by name (sponza, dragon, ...).
     #[arg(default_value = BUILTIN)]
-    scene: String,
+    pub(crate) scene: String,
     #[arg(long, default_value_t = 100)]
-    frames: u32,
+    pub(crate) frames: u32,
     #[arg(long, value_enum, default_value = "spin")]
-    motion: Motion,
+    pub(crate) motion: Motion,
     /// A PHR builder (phr-fast, phr-hq, phr:ALPHA,DELTA).
     #[arg(long, default_value = "phr-fast")]
-    builder: Builder,
+    pub(crate) builder: Builder,
     #[arg(long, default_value_t = 256)]
-    width: u32,
+    pub(crate) width: u32,
     #[arg(long, default_value_t = 256)]
-    height: u32,
+    pub(crate) height: u32,
     #[arg(long)]
-    view: Option<String>,
+    pub(crate) view: Option<String>,
     /// Folder for `frames.csv` (and the frames as PNG with --png).
     #[arg(long, default_value = "animation")]
-    out: PathBuf,
+    pub(crate) out: PathBuf,
     /// Also write every frame as PNG.
     #[arg(long)]
-    png: bool,
+    pub(crate) png: bool,
     /// How trees follow the motion: `thesis` (the default here: one tree over the whole scene,
     /// refitted and rebuilt with PHR every frame), `two-level` (rigid objects move by their
     /// transforms; only the deforming objects' tree is rebuilt) or `async` (two-level, the
     /// deforming objects' tree rebuilt on a worker thread and refitted meanwhile).
     #[arg(long, value_enum, default_value = "thesis")]
-    pipeline: PipelineArg,
+    pub(crate) pipeline: PipelineArg,
+    /// Where to render: `cpu`, or `gpu` (the thesis's pipeline: pose, refit and PHR on the
+    /// CPU, the tree and the moved primitives uploaded, the frame traced on the GPU; build
+    /// with `--features gpu`).
+    #[arg(long, value_enum, default_value = "cpu")]
+    pub(crate) device: crate::render::Device,
 }
 
-pub fn run(args: &AnimateArgs) -> Result<()> {
+/// What both devices do first: check the builder, make the output folder, open the scene
+/// with its motion and pick the view.
+pub(crate) fn prepare(args: &AnimateArgs) -> Result<(Scene, CameraDesc)> {
     if !matches!(args.builder, Builder::Phr(_)) {
         bail!("animate rebuilds with PHR: use phr-fast, phr-hq or phr:ALPHA,DELTA")
     }
@@ -76,6 +84,12 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
     if scene.animations.is_empty() {
         bail!("{}: nothing moves (the scene has no animation of its own; try --motion spin)", args.scene);
     }
+    Ok((scene, view))
+}
+
+/// `phr animate` on the CPU (`--device gpu` is `crate::animate_gpu`'s).
+pub fn run(args: &AnimateArgs) -> Result<()> {
+    let (scene, view) = prepare(args)?;
     let settings = PipelineSettings {
         builder: args.builder,
         pipeline: args.pipeline.into(),
@@ -115,7 +129,7 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
 
 /// Attaches the motion to every mesh of `scene` (replacing the scene's own animation), or
 /// keeps the scene's own.
-fn attach_motion(scene: &mut Scene, motion: Motion) {
+pub(crate) fn attach_motion(scene: &mut Scene, motion: Motion) {
     let bounds = scene.bounds();
     let (centre, size) = (bounds.center(), bounds.extent().max_element().max(f32::MIN_POSITIVE));
     let motion = match motion {

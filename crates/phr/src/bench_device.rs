@@ -177,7 +177,7 @@ mod gpu {
                 tracer.wait()?;
             }
             let start = Instant::now();
-            tracer.render(k..k + 1);
+            tracer.render(&uploaded, k..k + 1);
             tracer.wait()?;
             if k as usize >= warmup {
                 times.push(start.elapsed().as_secs_f64() * 1e3);

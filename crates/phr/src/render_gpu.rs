@@ -73,7 +73,7 @@ mod imp {
         let mut frame = 0;
         while frame < spp {
             let next = (frame + CHUNK).min(spp);
-            tracer.render(frame..next);
+            tracer.render(&uploaded, frame..next);
             tracer.wait()?;
             progress.set_position(next as u64);
             frame = next;

@@ -86,7 +86,7 @@ enum LightSampling {
 }
 
 /// [`PipelineKind`] on the command line (`phr view`, `phr animate`).
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum PipelineArg {
     Thesis,
     TwoLevel,

@@ -1,9 +1,9 @@
-//! `phr render --device gpu`: with the cargo feature `gpu` and an adapter (`.ci/run` installs
-//! lavapipe and runs the ignored test), the GPU renders the built-in scene with the CPU's
-//! random numbers, so its linear mean equals the CPU's pixel by pixel (but where rounding sent
-//! a path elsewhere), with either estimator; without the feature the flag is an error that
-//! says how to get it, and the denoiser the GPU lacks is refused either way, before any output
-//! is written.
+//! `phr render --device gpu` and `phr animate --device gpu`: with the cargo feature `gpu` and
+//! an adapter (`.ci/run` installs lavapipe and runs the ignored tests), the GPU renders the
+//! built-in scene with the CPU's random numbers, so its linear mean equals the CPU's pixel by
+//! pixel (but where rounding sent a path elsewhere), with either estimator, and animates a
+//! deforming mesh frame by frame; without the feature either flag is an error that says how to
+//! get it, and what the GPU lacks is refused either way, before any output is written.
 
 mod common;
 
@@ -32,6 +32,46 @@ fn without_the_feature_the_gpu_is_an_error_that_says_how_to_get_it() {
     assert_ne!(out.code, Some(0));
     assert!(out.stderr.contains("--features gpu"), "{}", out.stderr);
     assert!(!dir.join("x.png").exists(), "no output");
+    let args = ["animate", "--device", "gpu", "--frames", "2", "--out", "anim"];
+    let out = phr_within(&dir.0, &args, Duration::from_secs(60));
+    assert_ne!(out.code, Some(0));
+    assert!(out.stderr.contains("--features gpu"), "{}", out.stderr);
+    assert!(!dir.join("anim/frames.csv").exists(), "no output");
+}
+
+#[test]
+fn the_gpu_animates_with_the_thesis_s_pipeline_only() {
+    let dir = TempDir::new("gpu-animate-pipeline");
+    let args = ["animate", "--device", "gpu", "--pipeline", "async", "--frames", "2", "--out", "anim"];
+    let out = phr_within(&dir.0, &args, Duration::from_secs(60));
+    assert_ne!(out.code, Some(0));
+    assert!(out.stderr.contains("--pipeline thesis"), "{}", out.stderr);
+}
+
+/// A wave through the bunny, four frames on the GPU: every frame rebuilt, uploaded and traced,
+/// each frame's image a PNG; every frame traces at least its camera rays.
+#[cfg(feature = "gpu")]
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn the_gpu_animates_a_deforming_mesh() {
+    use common::Table;
+    let dir = TempDir::new("gpu-animate");
+    let args = ["--threads", "2", "animate", "bunny", "--motion", "wave", "--frames", "4", "--device", "gpu"];
+    let mut args = args.to_vec();
+    args.extend(["--width", "40", "--height", "30", "--png", "--out", "anim"]);
+    let out = phr_within(&dir.0, &args, Duration::from_secs(300));
+    assert_eq!(out.code, Some(0), "{}", out.stderr);
+    assert!(out.stdout.contains("upload") && out.stdout.contains("4 frames of bunny"), "{}", out.stdout);
+    let csv = Table::read(&dir.join("anim/frames.csv"));
+    assert_eq!(csv.rows.len(), 4);
+    for row in 0..4 {
+        for column in ["pose_ms", "refit_ms", "build_ms", "pack_ms", "upload_ms", "render_ms"] {
+            assert!(csv.num(row, column) >= 0.0, "{column}");
+        }
+        assert!(csv.num(row, "frame_ms") >= csv.num(row, "render_ms") + csv.num(row, "build_ms"));
+        assert!(csv.num(row, "rays") >= 40.0 * 30.0, "row {row}: {} rays", csv.num(row, "rays"));
+        assert!(dir.join(&format!("anim/frame{row:05}.png")).is_file());
+    }
 }
 
 #[cfg(feature = "gpu")]
