@@ -71,6 +71,13 @@ pub struct Packed {
     pub light_cdf: Vec<f32>,
     /// Probability of sampling the sky; `None`: no light sampling (the implicit estimator).
     pub sky_probability: Option<f32>,
+    /// Every colour texture's texels (sRGB, `r | g << 8 | b << 16`), one after the other, and
+    /// each texture's first texel, width and height.
+    pub texels: Vec<u32>,
+    pub textures: Vec<[u32; 4]>,
+    /// Each triangle's corners' texture coordinates, three per triangle in scene order (empty
+    /// when no material has a texture).
+    pub uvs: Vec<[f32; 2]>,
 }
 
 impl Packed {
@@ -128,7 +135,18 @@ impl Packed {
             // Nothing to hit: a root leaf of no primitives.
             nodes.push(GpuNode { lo: [0.0; 4], hi: [0.0; 4] });
         }
-        let materials = scene.materials.iter().map(material_record).collect();
+        let materials = scene
+            .materials
+            .iter()
+            .enumerate()
+            .map(|(m, material)| {
+                let mut record = material_record(material);
+                let texture = scene.material_texture.get(m).copied().flatten();
+                record.b[2] = f32::from_bits(texture.unwrap_or(NO_TEXTURE));
+                record
+            })
+            .collect();
+        let (texels, textures, uvs) = texture_records(scene, geometry);
         Ok(Self {
             nodes,
             prims,
@@ -136,8 +154,34 @@ impl Packed {
             lights: gpu_lights,
             light_cdf: lights.map_or(Vec::new(), |l| l.cdf().to_vec()),
             sky_probability: lights.map(LightSet::sky_probability),
+            texels,
+            textures,
+            uvs,
         })
     }
+}
+
+/// A material's texture word when it has none (`NO_TEXTURE` in the shader).
+const NO_TEXTURE: u32 = u32::MAX;
+
+/// The textures' texels one after the other, where each begins and its size, and the
+/// triangles' texture coordinates (none of the three when no material has a texture).
+fn texture_records(scene: &Scene, geometry: &Geometry) -> (Vec<u32>, Vec<[u32; 4]>, Vec<[f32; 2]>) {
+    if !scene.material_texture.iter().any(Option::is_some) {
+        return (Vec::new(), Vec::new(), Vec::new());
+    }
+    let mut texels = Vec::new();
+    let mut textures = Vec::new();
+    for texture in &scene.textures {
+        let (w, h) = texture.size();
+        textures.push([texels.len() as u32, w, h, 0]);
+        texels.extend(texture.srgb_texels().iter().map(|&[r, g, b]| u32::from_le_bytes([r, g, b, 0])));
+    }
+    let uvs = match geometry.triangle_uv.is_empty() {
+        true => vec![[0.0; 2]; 3 * geometry.triangles.len()],
+        false => geometry.triangle_uv.iter().flat_map(|corners| corners.map(|c| c.to_array())).collect(),
+    };
+    (texels, textures, uvs)
 }
 
 fn prim_record(geometry: &Geometry, n_tris: usize, p: u32) -> GpuPrim {
@@ -178,9 +222,6 @@ fn material_record(m: &Material) -> GpuMaterial {
 /// What the kernels do not draw yet.
 fn check_supported(scene: &Scene, geometry: &Geometry) -> Result<(), GpuError> {
     let unsupported = |what: String| Err(GpuError::Unsupported(what));
-    if let Some(m) = scene.material_texture.iter().position(|t| t.is_some()) {
-        return unsupported(format!("material \"{}\" has a texture", scene.material_names[m]));
-    }
     if let Some(m) = scene.material_mask.iter().position(|t| t.is_some()) {
         return unsupported(format!("material \"{}\" has an alpha mask", scene.material_names[m]));
     }
@@ -215,8 +256,8 @@ fn check_tree(bvh: &Bvh) -> Result<(), GpuError> {
 pub struct GpuScene {
     pub(crate) layout: wgpu::BindGroupLayout,
     pub(crate) group: wgpu::BindGroup,
-    /// Nodes, primitives, materials, lights, light weights: the group's bindings in order.
-    buffers: [wgpu::Buffer; 5],
+    /// The group's bindings in order ([`BUFFER_NAMES`]).
+    buffers: [wgpu::Buffer; BUFFERS],
     pub background: Background,
     /// Light sampling: the sky's probability and the number of emitters that can be picked
     /// (`None`: the implicit estimator).
@@ -226,16 +267,24 @@ pub struct GpuScene {
     pub prim_count: usize,
 }
 
-const BUFFER_NAMES: [&str; 5] = ["BVH nodes", "primitives", "materials", "lights", "light weights"];
+const BUFFERS: usize = 8;
+const BUFFER_NAMES: [&str; BUFFERS] =
+    ["BVH nodes", "primitives", "materials", "lights", "light weights", "texels", "textures", "texture coordinates"];
+/// The buffers a moving scene changes ([`GpuScene::update`]): nodes, primitives, lights, light
+/// weights.
+const MOVING: [usize; 4] = [0, 1, 3, 4];
 
 /// The bytes of each buffer of [`GpuScene`], in binding order.
-fn contents(packed: &Packed) -> [&[u8]; 5] {
+fn contents(packed: &Packed) -> [&[u8]; BUFFERS] {
     [
         bytemuck::cast_slice(&packed.nodes),
         bytemuck::cast_slice(&packed.prims),
         bytemuck::cast_slice(&packed.materials),
         bytemuck::cast_slice(&packed.lights),
         bytemuck::cast_slice(&packed.light_cdf),
+        bytemuck::cast_slice(&packed.texels),
+        bytemuck::cast_slice(&packed.textures),
+        bytemuck::cast_slice(&packed.uvs),
     ]
 }
 
@@ -247,12 +296,12 @@ impl GpuScene {
 
     pub fn upload_packed(gpu: &Gpu, packed: &Packed, background: Background) -> Result<Self, GpuError> {
         let data = contents(packed);
-        let mut buffers = Vec::with_capacity(5);
+        let mut buffers = Vec::with_capacity(BUFFERS);
         for (name, bytes) in BUFFER_NAMES.iter().zip(data) {
             buffers.push(gpu.storage(name, bytes, wgpu::BufferUsages::COPY_DST)?);
         }
-        let buffers: [wgpu::Buffer; 5] = buffers.try_into().expect("five buffers");
-        let layout = gpu.layout("scene", &[Binding::Read; 5]);
+        let buffers: [wgpu::Buffer; BUFFERS] = buffers.try_into().expect("one buffer per binding");
+        let layout = gpu.layout("scene", &[Binding::Read; BUFFERS]);
         let group = gpu.bind("scene", &layout, &buffers.each_ref());
         let bytes = data.iter().map(|d| d.len() as u64).sum();
         let lights = packed.sky_probability.map(|sky| (sky, packed.light_cdf.len() as u32));
@@ -261,22 +310,20 @@ impl GpuScene {
 
     /// Replaces the scene's contents with `packed` (the same scene moved: its tree, primitives
     /// and lights), writing into the buffers there are where the new contents fit and making
-    /// larger ones where they do not; the materials are the same and are not written. Returns
-    /// without waiting for the GPU.
+    /// larger ones where they do not; materials, textures and texture coordinates stay as they
+    /// are. Returns without waiting for the GPU.
     pub fn update(&mut self, gpu: &Gpu, packed: &Packed) -> Result<(), GpuError> {
         let mut rebound = false;
         let mut bytes = 0;
-        for (k, data) in contents(packed).into_iter().enumerate() {
-            if k == 2 {
-                continue;
-            }
-            if data.len() as u64 <= self.buffers[k].size() {
-                gpu.queue.write_buffer(&self.buffers[k], 0, data);
+        let data = contents(packed);
+        for k in MOVING {
+            if data[k].len() as u64 <= self.buffers[k].size() {
+                gpu.queue.write_buffer(&self.buffers[k], 0, data[k]);
             } else {
-                self.buffers[k] = gpu.storage(BUFFER_NAMES[k], data, wgpu::BufferUsages::COPY_DST)?;
+                self.buffers[k] = gpu.storage(BUFFER_NAMES[k], data[k], wgpu::BufferUsages::COPY_DST)?;
                 rebound = true;
             }
-            bytes += data.len() as u64;
+            bytes += data[k].len() as u64;
         }
         if rebound {
             self.group = gpu.bind("scene", &self.layout, &self.buffers.each_ref());

@@ -32,7 +32,7 @@ fn gpu() -> &'static Gpu {
     })
 }
 
-/// A reference scene: one of `shared/reference`, or `lights_mixed` of phr-render's own.
+/// A reference scene: one of `shared/reference`, or of phr-render's own (`OWN`).
 fn reference_scene(name: &str) -> Scene {
     let path = reference_paths(name).0;
     load_scene(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
@@ -40,13 +40,17 @@ fn reference_scene(name: &str) -> Scene {
 
 /// A reference's scene file and image.
 fn reference_paths(name: &str) -> (PathBuf, PathBuf) {
-    if name == "lights_mixed" {
+    if OWN.contains(&name) {
         let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../phr-render/tests/references"));
         return (dir.join(format!("{name}.json")), dir.join(format!("{name}_ref.exr")));
     }
     let dir = shared().join("reference");
     (dir.join(format!("scenes/{name}.json")), dir.join(format!("images/{name}.exr")))
 }
+
+/// phr-render's references (`crates/phr-render/tests/references`) the GPU draws: a triangle
+/// light, an emissive sphere, the sky and glass; OBJ texture coordinates and MTL `map_Kd`.
+const OWN: [&str; 2] = ["lights_mixed", "textured"];
 
 /// The light set of the path tracer with light sampling, or none for the thesis's estimator.
 fn light_set(geometry: &Geometry, scene: &Scene, sampled: bool) -> Option<LightSet> {
@@ -123,12 +127,12 @@ fn packing_puts_each_leaf_in_a_row() {
 /// What the kernels cannot draw yet is refused, never drawn wrong.
 #[test]
 fn what_the_gpu_cannot_draw_is_refused() {
-    let textured = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../phr-render/tests/references/textured.json"));
-    let scene = load_scene(&textured).unwrap();
+    let masked = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../phr-render/tests/references/alpha_mask.json"));
+    let scene = load_scene(&masked).unwrap();
     let geometry = built(&scene, &Builder::default());
     match Packed::new(&scene, &geometry, None) {
-        Err(GpuError::Unsupported(what)) => assert!(what.contains("texture"), "{what}"),
-        other => panic!("a textured scene was not refused: {:?}", other.map(|p| p.nodes.len())),
+        Err(GpuError::Unsupported(what)) => assert!(what.contains("alpha mask"), "{what}"),
+        other => panic!("a masked scene was not refused: {:?}", other.map(|p| p.nodes.len())),
     }
     let scene = reference_scene("cornell_obj");
     let wide = built(&scene, &Builder::PHR_FAST.with_branching(4).unwrap());
@@ -209,7 +213,7 @@ fn closest_hits_equal_the_cpu() {
 #[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
 fn frames_equal_the_cpu_pixel_by_pixel() {
     let gpu = gpu();
-    for name in ["cornell_glass_mirror", "spheres_sky", "lights_mixed"] {
+    for name in ["cornell_glass_mirror", "spheres_sky", "lights_mixed", "textured"] {
         let scene = reference_scene(name);
         let geometry = built(&scene, &Builder::default());
         for sampled in [false, true] {
@@ -245,16 +249,15 @@ fn frames_equal_the_cpu_pixel_by_pixel() {
     }
 }
 
-/// The GPU's images of the four references of `shared/reference` and of phr-render's
-/// `lights_mixed` (a triangle light, an emissive sphere, the sky and glass), 256 samples per
-/// pixel, with both estimators, through the team's comparison tool: the thesis's estimator
+/// The GPU's images of the four references of `shared/reference` and of phr-render's own
+/// (`OWN`), 256 samples per pixel, with both estimators, through the team's comparison tool: the thesis's estimator
 /// judged by the reference's noise per sample, light sampling by its own variance.
 #[test]
 #[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
 fn images_match_the_mitsuba_references() {
     let gpu = gpu();
     const SPP: u32 = 256;
-    for name in ["cornell_obj", "cornell_glass_mirror", "spheres_sky", "bunny_sky", "lights_mixed"] {
+    for name in ["cornell_obj", "cornell_glass_mirror", "spheres_sky", "bunny_sky", "lights_mixed", "textured"] {
         let scene = reference_scene(name);
         let geometry = built(&scene, &Builder::default());
         for sampled in [false, true] {

@@ -55,6 +55,12 @@ impl Texture {
         (self.width, self.height)
     }
 
+    /// The texels, row-major from the top row, sRGB (what a tracer elsewhere, the GPU's,
+    /// uploads and filters the same way).
+    pub fn srgb_texels(&self) -> &[[u8; 3]] {
+        &self.texels
+    }
+
     /// Memory the texels take, in bytes.
     pub fn bytes(&self) -> usize {
         self.texels.len() * 3

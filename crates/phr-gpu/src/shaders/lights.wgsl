@@ -257,6 +257,8 @@ fn trace_with_lights(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
         }
         let facing = select(-surface.normal, surface.normal, surface.front);
         let lobe = has_lobe(m);
+        // The lobe's scatter weight: the albedo, textured.
+        let albedo = textured(m, surface, m.a.xyz);
         if lobe {
             let sample = sample_lights(surface.position, facing, rng);
             if sample.pdf > 0.0 {
@@ -272,7 +274,7 @@ fn trace_with_lights(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
                     }
                     let weight = power_heuristic(sample.pdf, pdf);
                     if !any_hit(shadow) {
-                        radiance += throughput * m.a.xyz * sample.radiance * (pdf * weight / sample.pdf);
+                        radiance += throughput * albedo * sample.radiance * (pdf * weight / sample.pdf);
                     }
                 }
             }
@@ -282,7 +284,7 @@ fn trace_with_lights(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
             break;
         }
         if lobe {
-            throughput *= m.a.xyz;
+            throughput *= albedo;
             lit = true;
             lit_position = surface.position;
             lit_facing = facing;

@@ -24,7 +24,8 @@ struct Frame {
 
 // A material: `a.w` its kind (the bits of LAMBERTIAN, METAL, ...), `a.xyz` its albedo or
 // emission; metal: `b.x` fuzz, `b.y` 1 for RTIOW v3's fuzz in the ball; glass: `b.x` its index
-// of refraction; emitter: `b.x` 1 if two-sided.
+// of refraction; emitter: `b.x` 1 if two-sided; `b.z` the bits of its colour texture's number
+// (NO_TEXTURE: none; diffuse surfaces alone use it, as on the CPU).
 struct Material {
     a: vec4<f32>,
     b: vec4<f32>,
@@ -35,6 +36,7 @@ const METAL: u32 = 1u;
 const DIELECTRIC: u32 = 2u;
 const EMISSIVE: u32 = 3u;
 const RR_START: u32 = 3u;
+const NO_TEXTURE: u32 = 0xffffffffu;
 const FRAC_1_PI: f32 = 0.3183098861837907;
 const TRIANGLE_OFFSET: f32 = 1.0e-6;
 const SPHERE_OFFSET: f32 = 1500.0 / 16777216.0;
@@ -51,6 +53,12 @@ struct Light {
 @group(0) @binding(2) var<storage, read> materials: array<Material>;
 @group(0) @binding(3) var<storage, read> lights: array<Light>;
 @group(0) @binding(4) var<storage, read> light_cdf: array<f32>;
+// Colour textures (`phr_render::texture`): sRGB texels `r | g << 8 | b << 16`, one texture
+// after the other; each texture's first texel, width and height; three texture coordinates
+// per triangle, in scene order (empty without textures).
+@group(0) @binding(5) var<storage, read> texels: array<u32>;
+@group(0) @binding(6) var<storage, read> textures: array<vec4<u32>>;
+@group(0) @binding(7) var<storage, read> uvs: array<vec2<f32>>;
 @group(1) @binding(0) var<uniform> frame: Frame;
 @group(1) @binding(1) var<storage, read_write> sum: array<vec4<f32>>;
 @group(1) @binding(2) var<storage, read_write> sum_sq: array<vec4<f32>>;
@@ -107,6 +115,8 @@ struct Surface {
     offset: f32,
     // The emitter's number plus one (0: not a light to sample).
     emitter: u32,
+    // Texture coordinates (zero on spheres and meshes without any).
+    uv: vec2<f32>,
 }
 
 fn surface_at(ray: Ray, hit: Hit) -> Surface {
@@ -115,7 +125,13 @@ fn surface_at(ray: Ray, hit: Hit) -> Surface {
     var p: vec3<f32>;
     var n: vec3<f32>;
     var rel: f32;
+    var uv = vec2<f32>(0.0);
     if (bits & SPHERE) == 0u {
+        let corner = 3u * hit.prim;
+        if corner + 2u < arrayLength(&uvs) {
+            let a = uvs[corner];
+            uv = a + (uvs[corner + 1u] - a) * hit.u + (uvs[corner + 2u] - a) * hit.v;
+        }
         p = prim.a.xyz + prim.b.xyz * hit.u + prim.c.xyz * hit.v;
         n = normalize_or(cross(prim.b.xyz, prim.c.xyz), vec3<f32>(0.0, 0.0, 1.0));
         rel = TRIANGLE_OFFSET;
@@ -130,7 +146,53 @@ fn surface_at(ray: Ray, hit: Hit) -> Surface {
     let front = dot(ray.dir, n) < 0.0;
     let ap = abs(p);
     let offset = rel * (1.0 + max(max(ap.x, ap.y), ap.z));
-    return Surface(p, n, front, bits & ~SPHERE, offset, bitcast<u32>(prim.c.w));
+    return Surface(p, n, front, bits & ~SPHERE, offset, bitcast<u32>(prim.c.w), uv);
+}
+
+fn srgb_decode(c: u32) -> f32 {
+    let x = f32(c) / 255.0;
+    if x <= 0.04045 {
+        return x / 12.92;
+    }
+    return pow((x + 0.055) / 1.055, 2.4);
+}
+
+// Linear colour of texel (x, y) (from the top left, wrapped) of texture `t`.
+fn texel(t: vec4<u32>, x: i32, y: i32) -> vec3<f32> {
+    let w = i32(t.y);
+    let h = i32(t.z);
+    let at = t.x + u32(((y % h) + h) % h * w + ((x % w) + w) % w);
+    let c = texels[at];
+    return vec3<f32>(srgb_decode(c & 255u), srgb_decode((c >> 8u) & 255u), srgb_decode((c >> 16u) & 255u));
+}
+
+// `Texture::sample`: bilinear, repeating, texel centres at ((x + 0.5) / w, 1 − (y + 0.5) / h).
+fn sample_texture(index: u32, uv: vec2<f32>) -> vec3<f32> {
+    let t = textures[index];
+    if !(abs(uv.x) < INFINITY && abs(uv.y) < INFINITY) {
+        return texel(t, 0, 0);
+    }
+    let u = fract(uv.x) * f32(t.y) - 0.5;
+    let v = (1.0 - fract(uv.y)) * f32(t.z) - 0.5;
+    let x0 = floor(u);
+    let y0 = floor(v);
+    let fx = u - x0;
+    let fy = v - y0;
+    let x = i32(x0);
+    let y = i32(y0);
+    let top = mix(texel(t, x, y), texel(t, x + 1, y), fx);
+    let bottom = mix(texel(t, x, y + 1), texel(t, x + 1, y + 1), fx);
+    return mix(top, bottom, fy);
+}
+
+// A diffuse hit's scattering weight `weight` times its material's texture at the hit, if it has
+// one (`PathTracer::textured`).
+fn textured(m: Material, s: Surface, weight: vec3<f32>) -> vec3<f32> {
+    let texture = bitcast<u32>(m.b.z);
+    if bitcast<u32>(m.a.w) == LAMBERTIAN && texture != NO_TEXTURE {
+        return weight * sample_texture(texture, s.uv);
+    }
+    return weight;
 }
 
 fn spawn_origin(s: Surface, dir: vec3<f32>) -> vec3<f32> {
@@ -221,7 +283,7 @@ fn trace_implicit(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
         if s.weight.w == 0.0 {
             break;
         }
-        throughput *= s.weight.xyz;
+        throughput *= textured(m, surface, s.weight.xyz);
         ray = make_ray(spawn_origin(surface, s.dir), s.dir, 0.0, INFINITY);
     }
     return PathSample(radiance, rays);
