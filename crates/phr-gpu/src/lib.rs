@@ -14,9 +14,9 @@
 //! so the two converge to the same image; [`queries::HitQueries`] answers closest-hit queries
 //! for a batch of rays, which the tests hold against the CPU's.
 //!
-//! Colour textures are filtered as on the CPU. Not yet on the GPU (each refused with a clear
-//! error, never drawn wrong): alpha masks, environment maps, meshes placed by instances, trees
-//! other than binary ones.
+//! Colour textures, alpha masks and environment maps are looked up and sampled as on the CPU.
+//! Not yet on the GPU (each refused with a clear error, never drawn wrong): meshes placed by
+//! instances (front ends flatten them), trees other than binary ones, the denoiser.
 
 pub mod device;
 pub mod queries;

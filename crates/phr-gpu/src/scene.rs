@@ -21,6 +21,9 @@ pub(crate) const COMMON_WGSL: &str = include_str!("shaders/common.wgsl");
 
 /// The bit of a primitive's material word that marks a sphere (`SPHERE` in the shader).
 const SPHERE: u32 = 1 << 31;
+/// The bit of a triangle's material word that says its material has an alpha mask to test
+/// (`MASKED` in the shader).
+const MASKED: u32 = 1 << 30;
 
 /// A node as the shader reads it: box, with `first` and `count` in the fourth lanes.
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
@@ -78,6 +81,10 @@ pub struct Packed {
     /// Each triangle's corners' texture coordinates, three per triangle in scene order (empty
     /// when no material has a texture).
     pub uvs: Vec<[f32; 2]>,
+    /// An environment map's linear texels, and its tables one after the other: over rows,
+    /// over each row's cells, each cell's probability (`EnvironmentTables`); empty without one.
+    pub environment_texels: Vec<[f32; 4]>,
+    pub environment_tables: Vec<f32>,
 }
 
 impl Packed {
@@ -96,9 +103,10 @@ impl Packed {
         bvh: &Bvh,
         lights: Option<&LightSet>,
     ) -> Result<Self, GpuError> {
-        check_supported(scene, geometry)?;
+        check_supported(geometry)?;
         check_tree(bvh)?;
         let n_tris = geometry.triangles.len();
+        let masked = |material: u32| scene.material_mask.get(material as usize).is_some_and(Option::is_some);
         // Each emitter's number plus one, by primitive (empty without light sampling).
         let mut emitter_of = Vec::new();
         let mut gpu_lights = Vec::new();
@@ -117,6 +125,9 @@ impl Packed {
             .map(|&p| {
                 let mut record = prim_record(geometry, n_tris, p);
                 record.c[3] = f32::from_bits(emitter_of.get(p as usize).copied().unwrap_or(0));
+                if (p as usize) < n_tris && masked(geometry.triangle_material[p as usize]) {
+                    record.a[3] = f32::from_bits(record.a[3].to_bits() | MASKED);
+                }
                 record
             })
             .collect();
@@ -143,10 +154,21 @@ impl Packed {
                 let mut record = material_record(material);
                 let texture = scene.material_texture.get(m).copied().flatten();
                 record.b[2] = f32::from_bits(texture.unwrap_or(NO_TEXTURE));
+                // Masks follow the colour textures in the texture table.
+                let mask = scene.material_mask.get(m).copied().flatten();
+                record.b[3] = f32::from_bits(mask.map_or(NO_TEXTURE, |k| k + scene.textures.len() as u32));
                 record
             })
             .collect();
         let (texels, textures, uvs) = texture_records(scene, geometry);
+        let (environment_texels, environment_tables) = match &scene.background {
+            Background::Environment(map) => {
+                let t = map.tables();
+                let texels = t.texels.iter().map(|c| [c.x, c.y, c.z, 0.0]).collect();
+                (texels, [t.row_cdf, t.cell_cdf, t.cell_probability].concat())
+            }
+            _ => (Vec::new(), Vec::new()),
+        };
         Ok(Self {
             nodes,
             prims,
@@ -157,6 +179,8 @@ impl Packed {
             texels,
             textures,
             uvs,
+            environment_texels,
+            environment_tables,
         })
     }
 }
@@ -164,10 +188,11 @@ impl Packed {
 /// A material's texture word when it has none (`NO_TEXTURE` in the shader).
 const NO_TEXTURE: u32 = u32::MAX;
 
-/// The textures' texels one after the other, where each begins and its size, and the
-/// triangles' texture coordinates (none of the three when no material has a texture).
+/// The colour textures' texels and then the alpha masks' one after the other, where each
+/// begins, its size and (masks) the bits of its threshold, and the triangles' texture
+/// coordinates (none of the three when no material has a texture or a mask).
 fn texture_records(scene: &Scene, geometry: &Geometry) -> (Vec<u32>, Vec<[u32; 4]>, Vec<[f32; 2]>) {
-    if !scene.material_texture.iter().any(Option::is_some) {
+    if !scene.material_texture.iter().chain(&scene.material_mask).any(Option::is_some) {
         return (Vec::new(), Vec::new(), Vec::new());
     }
     let mut texels = Vec::new();
@@ -176,6 +201,11 @@ fn texture_records(scene: &Scene, geometry: &Geometry) -> (Vec<u32>, Vec<[u32; 4
         let (w, h) = texture.size();
         textures.push([texels.len() as u32, w, h, 0]);
         texels.extend(texture.srgb_texels().iter().map(|&[r, g, b]| u32::from_le_bytes([r, g, b, 0])));
+    }
+    for mask in &scene.masks {
+        let ((w, h), coverage, threshold) = mask.parts();
+        textures.push([texels.len() as u32, w, h, threshold.to_bits()]);
+        texels.extend(coverage.iter().map(|&c| u32::from(c)));
     }
     let uvs = match geometry.triangle_uv.is_empty() {
         true => vec![[0.0; 2]; 3 * geometry.triangles.len()],
@@ -219,15 +249,9 @@ fn material_record(m: &Material) -> GpuMaterial {
     }
 }
 
-/// What the kernels do not draw yet.
-fn check_supported(scene: &Scene, geometry: &Geometry) -> Result<(), GpuError> {
+/// What the kernels do not trace yet.
+fn check_supported(geometry: &Geometry) -> Result<(), GpuError> {
     let unsupported = |what: String| Err(GpuError::Unsupported(what));
-    if let Some(m) = scene.material_mask.iter().position(|t| t.is_some()) {
-        return unsupported(format!("material \"{}\" has an alpha mask", scene.material_names[m]));
-    }
-    if matches!(scene.background, Background::Environment(_)) {
-        return unsupported("an environment map lights the scene".into());
-    }
     if geometry.copy_count() > 0 || geometry.part_count() > 1 {
         return unsupported("meshes placed by instances (flatten them first)".into());
     }
@@ -267,9 +291,19 @@ pub struct GpuScene {
     pub prim_count: usize,
 }
 
-const BUFFERS: usize = 8;
-const BUFFER_NAMES: [&str; BUFFERS] =
-    ["BVH nodes", "primitives", "materials", "lights", "light weights", "texels", "textures", "texture coordinates"];
+const BUFFERS: usize = 10;
+const BUFFER_NAMES: [&str; BUFFERS] = [
+    "BVH nodes",
+    "primitives",
+    "materials",
+    "lights",
+    "light weights",
+    "texels",
+    "textures",
+    "texture coordinates",
+    "environment map",
+    "environment map tables",
+];
 /// The buffers a moving scene changes ([`GpuScene::update`]): nodes, primitives, lights, light
 /// weights.
 const MOVING: [usize; 4] = [0, 1, 3, 4];
@@ -285,6 +319,8 @@ fn contents(packed: &Packed) -> [&[u8]; BUFFERS] {
         bytemuck::cast_slice(&packed.texels),
         bytemuck::cast_slice(&packed.textures),
         bytemuck::cast_slice(&packed.uvs),
+        bytemuck::cast_slice(&packed.environment_texels),
+        bytemuck::cast_slice(&packed.environment_tables),
     ]
 }
 

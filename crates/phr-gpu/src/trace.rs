@@ -12,6 +12,7 @@ use phr_render::scene::Background;
 
 const PATH_WGSL: &str = include_str!("shaders/path.wgsl");
 const LIGHTS_WGSL: &str = include_str!("shaders/lights.wgsl");
+const ENVIRONMENT_WGSL: &str = include_str!("shaders/environment.wgsl");
 /// The kernel's workgroup is 8 × 8 pixels.
 const GROUP: u32 = 8;
 
@@ -67,7 +68,13 @@ impl<'a> GpuTracer<'a> {
         let (kind, sky_a, sky_b) = match scene.background {
             Background::Constant(c) => (0, c, c),
             Background::Gradient { bottom, top } => (1, bottom, top),
-            Background::Environment(_) => return Err(GpuError::Unsupported("an environment map".into())),
+            // The map's size and rotation (`environment.wgsl`); its texels and tables are the
+            // scene's.
+            Background::Environment(ref map) => {
+                let t = map.tables();
+                let size = Vec3::new(f32::from_bits(t.width as u32), f32::from_bits(t.height as u32), t.rotation.0);
+                (2, size, Vec3::new(t.rotation.1, 0.0, 0.0))
+            }
         };
         let uniform = FrameUniform {
             size: [width, height, 0, max_depth],
@@ -98,7 +105,7 @@ impl<'a> GpuTracer<'a> {
         let layout =
             gpu.layout("path tracer", &[Binding::Uniform, Binding::ReadWrite, Binding::ReadWrite, Binding::ReadWrite]);
         let group = gpu.bind("path tracer", &layout, &[&frame, &sum, &sum_sq, &rays]);
-        let source = format!("{COMMON_WGSL}\n{PATH_WGSL}\n{LIGHTS_WGSL}");
+        let source = format!("{COMMON_WGSL}\n{PATH_WGSL}\n{LIGHTS_WGSL}\n{ENVIRONMENT_WGSL}");
         let pipeline = gpu.pipeline("path tracer", &source, "render", &[&scene.layout, &layout]);
         Ok(Self { gpu, pipeline, group, frame, sum, sum_sq, rays, uniform, width, height, samples: 0 })
     }

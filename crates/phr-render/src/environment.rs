@@ -23,6 +23,22 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::{PI, TAU};
 use std::path::Path;
 
+/// An environment map's texels and its sampling tables in single precision, each cumulative
+/// table divided by its total (all zeros where the total is zero).
+pub struct EnvironmentTables<'a> {
+    pub width: usize,
+    pub height: usize,
+    pub texels: &'a [Vec3],
+    /// `rotate` about +y, as cosine and sine.
+    pub rotation: (f32, f32),
+    /// Over the rows of cells (`height` entries, the last 1 unless the map is black).
+    pub row_cdf: Vec<f32>,
+    /// Per row of cells, over its cells (`width + 1` entries a row).
+    pub cell_cdf: Vec<f32>,
+    /// Each cell's probability (`width` a row): what the density is made of.
+    pub cell_probability: Vec<f32>,
+}
+
 #[derive(Clone, Debug)]
 pub struct EnvironmentMap {
     width: usize,
@@ -126,6 +142,30 @@ impl EnvironmentMap {
             }
             let total = self.row_cdf[y] + sum;
             self.row_cdf.push(total);
+        }
+    }
+
+    /// Its texels and sampling tables, normalised, for a tracer elsewhere (the GPU's) that
+    /// looks up and samples the map the same way in single precision.
+    pub fn tables(&self) -> EnvironmentTables<'_> {
+        let (w, rows) = (self.width, self.rows());
+        let total = self.row_cdf[rows];
+        let share = |x: f64, of: f64| if of > 0.0 { (x / of) as f32 } else { 0.0 };
+        let mut cell_cdf = Vec::with_capacity(rows * (w + 1));
+        let mut cell_probability = Vec::with_capacity(rows * w);
+        for y in 0..rows {
+            let row = &self.cell_cdf[y * (w + 1)..(y + 1) * (w + 1)];
+            cell_cdf.extend(row.iter().map(|&c| share(c, row[w])));
+            cell_probability.extend((0..w).map(|x| share(self.weight(x, y), total)));
+        }
+        EnvironmentTables {
+            width: w,
+            height: self.height,
+            texels: &self.texels,
+            rotation: self.rotation,
+            row_cdf: self.row_cdf.iter().map(|&c| share(c, total)).collect(),
+            cell_cdf,
+            cell_probability,
         }
     }
 

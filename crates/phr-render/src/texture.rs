@@ -172,6 +172,12 @@ impl AlphaMask {
         self.coverage.len()
     }
 
+    /// Its size, its coverage values (row-major from the top row) and its threshold: what a
+    /// tracer elsewhere (the GPU's) uploads to test the same way.
+    pub fn parts(&self) -> ((u32, u32), &[u8], f32) {
+        ((self.width, self.height), &self.coverage, self.threshold)
+    }
+
     #[inline]
     fn value(&self, x: i64, y: i64) -> f32 {
         f32::from(self.coverage[wrapped(self.width, self.height, x, y)]) / 255.0

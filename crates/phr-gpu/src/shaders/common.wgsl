@@ -113,6 +113,9 @@ struct Prim {
 
 const INTERIOR: u32 = 0x80000000u;
 const SPHERE: u32 = 0x80000000u;
+// A triangle whose material has an alpha mask to test.
+const MASKED: u32 = 0x40000000u;
+const NO_TEXTURE: u32 = 0xffffffffu;
 const NO_HIT: u32 = 0xffffffffu;
 const STACK: u32 = 64u;
 const EPSILON: f32 = 1.1920929e-7;
@@ -123,6 +126,76 @@ const INFINITY: f32 = 0x1.fffffep+127;
 
 @group(0) @binding(0) var<storage, read> nodes: array<Node>;
 @group(0) @binding(1) var<storage, read> prims: array<Prim>;
+
+// A material: `a.w` its kind (the bits of LAMBERTIAN, METAL, ...), `a.xyz` its albedo or
+// emission; metal: `b.x` fuzz, `b.y` 1 for RTIOW v3's fuzz in the ball; glass: `b.x` its index
+// of refraction; emitter: `b.x` 1 if two-sided; `b.z` the bits of its colour texture's number
+// (NO_TEXTURE: none; diffuse surfaces alone use it, as on the CPU); `b.w` the bits of its
+// alpha mask's number in `textures` (NO_TEXTURE: none).
+struct Material {
+    a: vec4<f32>,
+    b: vec4<f32>,
+}
+
+@group(0) @binding(2) var<storage, read> materials: array<Material>;
+// Colour textures and alpha masks (`phr_render::texture`): sRGB texels `r | g << 8 | b << 16`
+// or coverage values, one image after the other; each image's first texel, width, height and
+// (masks) the bits of its threshold; three texture coordinates
+// per triangle, in scene order (empty without textures).
+@group(0) @binding(5) var<storage, read> texels: array<u32>;
+@group(0) @binding(6) var<storage, read> textures: array<vec4<u32>>;
+@group(0) @binding(7) var<storage, read> uvs: array<vec2<f32>>;
+
+// The texture coordinates at barycentrics (u, v) of triangle `prim` (zero without any).
+fn uv_at(prim: u32, u: f32, v: f32) -> vec2<f32> {
+    let corner = 3u * prim;
+    if corner + 2u >= arrayLength(&uvs) {
+        return vec2<f32>(0.0);
+    }
+    let a = uvs[corner];
+    return a + (uvs[corner + 1u] - a) * u + (uvs[corner + 2u] - a) * v;
+}
+
+// Image `t`'s texel (x, y), from the top left, coordinates wrapped.
+fn texel_bits(t: vec4<u32>, x: i32, y: i32) -> u32 {
+    let w = i32(t.y);
+    let h = i32(t.z);
+    return texels[t.x + u32(((y % h) + h) % h * w + ((x % w) + w) % w)];
+}
+
+// The bilinear footprint of `uv` on image `t` (`texture::footprint`): the top left texel of
+// the four (x0, y0) and the weights of the right and lower ones; x0 = NaN for coordinates that
+// are not finite.
+fn footprint(t: vec4<u32>, uv: vec2<f32>) -> vec4<f32> {
+    if !(abs(uv.x) < INFINITY && abs(uv.y) < INFINITY) {
+        return vec4<f32>(0.0, 0.0, -1.0, 0.0);
+    }
+    let u = fract(uv.x) * f32(t.y) - 0.5;
+    let v = (1.0 - fract(uv.y)) * f32(t.z) - 0.5;
+    let x0 = floor(u);
+    let y0 = floor(v);
+    return vec4<f32>(x0, y0, u - x0, v - y0);
+}
+
+fn coverage(t: vec4<u32>, x: i32, y: i32) -> f32 {
+    return f32(texel_bits(t, x, y)) / 255.0;
+}
+
+// `AlphaMask::covers`: the bilinearly filtered coverage reaches the mask's threshold.
+fn covers(mask: u32, uv: vec2<f32>) -> bool {
+    let t = textures[mask];
+    let threshold = bitcast<f32>(t.w);
+    let f = footprint(t, uv);
+    if f.z < 0.0 {
+        return coverage(t, 0, 0) >= threshold;
+    }
+    let x = i32(f.x);
+    let y = i32(f.y);
+    let top = mix(coverage(t, x, y), coverage(t, x + 1, y), f.z);
+    let bottom = mix(coverage(t, x, y + 1), coverage(t, x + 1, y + 1), f.z);
+    return mix(top, bottom, f.w) >= threshold;
+}
+
 
 struct Ray {
     origin: vec3<f32>,
@@ -221,8 +294,16 @@ fn test_prim(slot: u32, ray: ptr<function, Ray>, best: ptr<function, Hit>) {
     let prim = prims[slot];
     let number = bitcast<u32>(prim.b.w);
     var hit = vec3<f32>(INFINITY, 0.0, 0.0);
-    if (bitcast<u32>(prim.a.w) & SPHERE) == 0u {
+    let bits = bitcast<u32>(prim.a.w);
+    if (bits & SPHERE) == 0u {
         hit = intersect_triangle(*ray, prim.a.xyz, prim.b.xyz, prim.c.xyz);
+        // Where its material's alpha mask does not cover it, a triangle is no hit.
+        if (bits & MASKED) != 0u && hit.x < INFINITY {
+            let mask = bitcast<u32>(materials[bits & ~MASKED].b.w);
+            if !covers(mask, uv_at(number, hit.y, hit.z)) {
+                return;
+            }
+        }
     } else {
         hit.x = intersect_sphere(*ray, prim.a.xyz, prim.b.x);
     }

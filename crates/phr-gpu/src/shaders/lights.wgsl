@@ -67,6 +67,13 @@ fn lobe_pdf(m: Material, dir: vec3<f32>, normal: vec3<f32>, front: bool, out: ve
 }
 
 fn pdf_sky(facing: vec3<f32>, dir: vec3<f32>) -> f32 {
+    if frame.seed.z == ENVIRONMENT {
+        // `sample_sky` returns no direction below the surface.
+        if dot(facing, dir) > 0.0 {
+            return sky_probability() * env_pdf(dir);
+        }
+        return 0.0;
+    }
     return sky_probability() * max(dot(facing, dir), 0.0) * FRAC_1_PI;
 }
 
@@ -116,6 +123,16 @@ struct LightSample {
 const NO_LIGHT: LightSample = LightSample(vec3<f32>(0.0), vec3<f32>(0.0), false, vec3<f32>(0.0), 0.0);
 
 fn sample_sky(facing: vec3<f32>, rng: ptr<function, Pcg>) -> LightSample {
+    if frame.seed.z == ENVIRONMENT {
+        let u1 = next_f32(rng);
+        let u2 = next_f32(rng);
+        let sample = env_sample(u1, u2);
+        // Below the surface it lights nothing.
+        if !(sample.w > 0.0) || dot(facing, sample.xyz) <= 0.0 {
+            return NO_LIGHT;
+        }
+        return LightSample(sample.xyz, vec3<f32>(0.0), false, env_radiance(sample.xyz), sky_probability() * sample.w);
+    }
     let d = facing + unit_vector(rng);
     let len = length(d);
     if !(len > 1.0e-6) {

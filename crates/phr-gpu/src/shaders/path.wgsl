@@ -9,7 +9,8 @@
 struct Frame {
     // width, height, frame number, max_depth
     size: vec4<u32>,
-    // seed (low, high), background kind (0 constant, 1 gradient), 1 for light sampling
+    // seed (low, high), background kind (0 constant, 1 gradient, 2 environment map), 1 for
+    // light sampling
     seed: vec4<u32>,
     // Light sampling: the sky's probability, the bits of the number of emitters to pick from.
     light: vec4<f32>,
@@ -22,21 +23,12 @@ struct Frame {
     sky_b: vec4<f32>,
 }
 
-// A material: `a.w` its kind (the bits of LAMBERTIAN, METAL, ...), `a.xyz` its albedo or
-// emission; metal: `b.x` fuzz, `b.y` 1 for RTIOW v3's fuzz in the ball; glass: `b.x` its index
-// of refraction; emitter: `b.x` 1 if two-sided; `b.z` the bits of its colour texture's number
-// (NO_TEXTURE: none; diffuse surfaces alone use it, as on the CPU).
-struct Material {
-    a: vec4<f32>,
-    b: vec4<f32>,
-}
 
 const LAMBERTIAN: u32 = 0u;
 const METAL: u32 = 1u;
 const DIELECTRIC: u32 = 2u;
 const EMISSIVE: u32 = 3u;
 const RR_START: u32 = 3u;
-const NO_TEXTURE: u32 = 0xffffffffu;
 const FRAC_1_PI: f32 = 0.3183098861837907;
 const TRIANGLE_OFFSET: f32 = 1.0e-6;
 const SPHERE_OFFSET: f32 = 1500.0 / 16777216.0;
@@ -50,15 +42,8 @@ struct Light {
     c: vec4<f32>,
 }
 
-@group(0) @binding(2) var<storage, read> materials: array<Material>;
 @group(0) @binding(3) var<storage, read> lights: array<Light>;
 @group(0) @binding(4) var<storage, read> light_cdf: array<f32>;
-// Colour textures (`phr_render::texture`): sRGB texels `r | g << 8 | b << 16`, one texture
-// after the other; each texture's first texel, width and height; three texture coordinates
-// per triangle, in scene order (empty without textures).
-@group(0) @binding(5) var<storage, read> texels: array<u32>;
-@group(0) @binding(6) var<storage, read> textures: array<vec4<u32>>;
-@group(0) @binding(7) var<storage, read> uvs: array<vec2<f32>>;
 @group(1) @binding(0) var<uniform> frame: Frame;
 @group(1) @binding(1) var<storage, read_write> sum: array<vec4<f32>>;
 @group(1) @binding(2) var<storage, read_write> sum_sq: array<vec4<f32>>;
@@ -80,6 +65,9 @@ fn pixel_jitter(seed: vec2<u32>, n: u32, pixel: u32) -> vec2<f32> {
 fn sky(unit_dir: vec3<f32>) -> vec3<f32> {
     if frame.seed.z == 0u {
         return frame.sky_a.xyz;
+    }
+    if frame.seed.z == ENVIRONMENT {
+        return env_radiance(unit_dir);
     }
     let a = 0.5 * (unit_dir.y + 1.0);
     return (1.0 - a) * frame.sky_a.xyz + a * frame.sky_b.xyz;
@@ -127,11 +115,7 @@ fn surface_at(ray: Ray, hit: Hit) -> Surface {
     var rel: f32;
     var uv = vec2<f32>(0.0);
     if (bits & SPHERE) == 0u {
-        let corner = 3u * hit.prim;
-        if corner + 2u < arrayLength(&uvs) {
-            let a = uvs[corner];
-            uv = a + (uvs[corner + 1u] - a) * hit.u + (uvs[corner + 2u] - a) * hit.v;
-        }
+        uv = uv_at(hit.prim, hit.u, hit.v);
         p = prim.a.xyz + prim.b.xyz * hit.u + prim.c.xyz * hit.v;
         n = normalize_or(cross(prim.b.xyz, prim.c.xyz), vec3<f32>(0.0, 0.0, 1.0));
         rel = TRIANGLE_OFFSET;
@@ -146,7 +130,7 @@ fn surface_at(ray: Ray, hit: Hit) -> Surface {
     let front = dot(ray.dir, n) < 0.0;
     let ap = abs(p);
     let offset = rel * (1.0 + max(max(ap.x, ap.y), ap.z));
-    return Surface(p, n, front, bits & ~SPHERE, offset, bitcast<u32>(prim.c.w), uv);
+    return Surface(p, n, front, bits & ~(SPHERE | MASKED), offset, bitcast<u32>(prim.c.w), uv);
 }
 
 fn srgb_decode(c: u32) -> f32 {
@@ -159,30 +143,22 @@ fn srgb_decode(c: u32) -> f32 {
 
 // Linear colour of texel (x, y) (from the top left, wrapped) of texture `t`.
 fn texel(t: vec4<u32>, x: i32, y: i32) -> vec3<f32> {
-    let w = i32(t.y);
-    let h = i32(t.z);
-    let at = t.x + u32(((y % h) + h) % h * w + ((x % w) + w) % w);
-    let c = texels[at];
+    let c = texel_bits(t, x, y);
     return vec3<f32>(srgb_decode(c & 255u), srgb_decode((c >> 8u) & 255u), srgb_decode((c >> 16u) & 255u));
 }
 
 // `Texture::sample`: bilinear, repeating, texel centres at ((x + 0.5) / w, 1 − (y + 0.5) / h).
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec3<f32> {
     let t = textures[index];
-    if !(abs(uv.x) < INFINITY && abs(uv.y) < INFINITY) {
+    let f = footprint(t, uv);
+    if f.z < 0.0 {
         return texel(t, 0, 0);
     }
-    let u = fract(uv.x) * f32(t.y) - 0.5;
-    let v = (1.0 - fract(uv.y)) * f32(t.z) - 0.5;
-    let x0 = floor(u);
-    let y0 = floor(v);
-    let fx = u - x0;
-    let fy = v - y0;
-    let x = i32(x0);
-    let y = i32(y0);
-    let top = mix(texel(t, x, y), texel(t, x + 1, y), fx);
-    let bottom = mix(texel(t, x, y + 1), texel(t, x + 1, y + 1), fx);
-    return mix(top, bottom, fy);
+    let x = i32(f.x);
+    let y = i32(f.y);
+    let top = mix(texel(t, x, y), texel(t, x + 1, y), f.z);
+    let bottom = mix(texel(t, x, y + 1), texel(t, x + 1, y + 1), f.z);
+    return mix(top, bottom, f.w);
 }
 
 // A diffuse hit's scattering weight `weight` times its material's texture at the hit, if it has
