@@ -86,8 +86,8 @@ pub struct RenderArgs {
     pub tracing: Tracing,
     /// Where to trace: `cpu`, or `gpu` (the WGSL path tracer of crates/phr-gpu on any Vulkan,
     /// Metal or DX12 adapter, Mesa's lavapipe included; build with `--features gpu`). The GPU
-    /// traces the builder's binary tree, with either estimator and no denoiser yet
-    /// (`--denoiser none`).
+    /// traces the builder's binary tree with either estimator; the denoiser then runs on the
+    /// CPU.
     #[arg(long, value_enum, default_value = "cpu")]
     pub device: Device,
 }
@@ -233,16 +233,38 @@ pub fn run(args: &RenderArgs) -> Result<()> {
     let render_ms = render_start.elapsed().as_secs_f64() * 1e3;
     progress.finish_and_clear();
 
+    let notes = finish(args, &renderer, &film)?;
+    let sah = sah_cost(geometry.bvh(), SahConstants::UNIT);
+    println!(
+        "{}: {} triangles, {} spheres | {build} | render {:.0} ms ({width}x{height}, {spp} spp) | {:.2} Mrays/s | SAH cost {:.2}",
+        args.scene,
+        geometry.triangle_count(),
+        geometry.spheres.len(),
+        render_ms,
+        rays as f64 / (render_ms / 1e3) / 1e6,
+        sah
+    );
+    notes.iter().for_each(|line| println!("{line}"));
+    println!("wrote {}", args.out.display());
+    Ok(())
+}
+
+/// What follows the frames on either device: the denoiser, whose guide and extra samples
+/// `renderer` traces on the CPU, then every output file. Returns what to print after the
+/// render's summary.
+pub fn finish(args: &RenderArgs, renderer: &Renderer, film: &Film) -> Result<Vec<String>> {
+    let (width, height, spp) = (film.width, film.height, film.samples);
+    let mut notes = Vec::new();
     let mean = film.mean();
     let start = Instant::now();
     let (denoised, guide) = match args.denoiser.filter() {
         Some(filter) => {
-            let finished = filter.finish(&renderer, &film).map_err(anyhow::Error::msg)?;
+            let finished = filter.finish(renderer, film).map_err(anyhow::Error::msg)?;
             let ms = start.elapsed().as_secs_f64() * 1e3;
             let refined = (finished.refined_pixels, finished.extra_samples);
             (Some((finished.image, ms, refined)), Some(finished.guide))
         }
-        None => (None, args.albedo.is_some().then(|| Guide::render(&renderer, spp.min(GUIDE_SAMPLES)))),
+        None => (None, args.albedo.is_some().then(|| Guide::render(renderer, spp.min(GUIDE_SAMPLES)))),
     };
     let image = denoised.as_ref().map_or(&mean, |(image, _, _)| image);
     write_image(&args.out, width, height, image).with_context(|| format!("writing {}", args.out.display()))?;
@@ -263,30 +285,19 @@ pub fn run(args: &RenderArgs) -> Result<()> {
         let steps: Vec<u32> = renderer.primary_ray_stats().iter().map(|s| s.nodes).collect();
         let max = write_heatmap(p, width, height, &steps, None).with_context(|| format!("writing {}", p.display()))?;
         let mean = steps.iter().map(|&s| s as f64).sum::<f64>() / steps.len() as f64;
-        println!("heatmap: {} (mean {mean:.1} traversal steps per primary ray, red = {max})", p.display());
+        notes.push(format!("heatmap: {} (mean {mean:.1} traversal steps per primary ray, red = {max})", p.display()));
     }
-    let sah = sah_cost(geometry.bvh(), SahConstants::UNIT);
-    println!(
-        "{}: {} triangles, {} spheres | {build} | render {:.0} ms ({width}x{height}, {spp} spp) | {:.2} Mrays/s | SAH cost {:.2}",
-        args.scene,
-        geometry.triangle_count(),
-        geometry.spheres.len(),
-        render_ms,
-        rays as f64 / (render_ms / 1e3) / 1e6,
-        sah
-    );
     if let Some((_, ms, (pixels, samples))) = denoised {
         let filter = match args.denoiser {
             Denoiser::Oidn => "Open Image Denoise".to_string(),
             _ => format!("à-trous, {} passes", Atrous::default().passes),
         };
-        println!(
+        notes.push(format!(
             "denoised ({filter}) in {ms:.0} ms: the guide, {pixels} unfiltered noisy pixels (light and sky edges) \
              sampled {samples} more times each, the filter"
-        );
+        ));
     }
-    println!("wrote {}", args.out.display());
-    Ok(())
+    Ok(notes)
 }
 
 /// `dir/name.ext` → `dir/name{suffix}.ext`.

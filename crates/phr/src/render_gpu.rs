@@ -1,18 +1,17 @@
 //! `phr render --device gpu`: the render on the GPU (`crates/phr-gpu`), in a `phr` built with
-//! the cargo feature `gpu`. The CPU builds the tree, the GPU traces and accumulates; the
-//! outputs are the CPU render's (mean, linear mean, variance of the mean).
+//! the cargo feature `gpu`. The CPU builds the tree, the GPU traces and accumulates the
+//! frames; then the CPU render's last step (`render::finish`): the denoiser, whose guide and
+//! few extra samples the CPU traces (the GPU's samples are the CPU's, so they mix), and the
+//! output files.
 
-use crate::render::{prepare, Denoiser, RenderArgs};
+use crate::render::{prepare, RenderArgs};
 use anyhow::{bail, Result};
 use phr_render::camera::CameraDesc;
 use phr_render::scene::{RenderSettings, Scene};
 
 pub fn run(args: &RenderArgs) -> Result<()> {
-    if args.denoiser != Denoiser::None {
-        bail!("--device gpu: the GPU tracer has no denoiser yet: add `--denoiser none`");
-    }
-    if args.heatmap.is_some() || args.albedo.is_some() {
-        bail!("--device gpu writes no heatmap and no albedo guide yet");
+    if args.heatmap.is_some() {
+        bail!("--device gpu: the heatmap counts the CPU's traversal steps; render it with --device cpu");
     }
     if args.branching != 2 {
         bail!("--device gpu traces binary trees: leave --branching at 2");
@@ -36,13 +35,12 @@ mod imp {
 #[cfg(feature = "gpu")]
 mod imp {
     use super::*;
-    use crate::render::{describe_build, Integrator};
-    use anyhow::Context;
+    use crate::render::{describe_build, finish, Integrator};
     use phr_gpu::{Gpu, GpuScene, GpuTracer};
     use phr_render::camera::Camera;
     use phr_render::geometry::Geometry;
     use phr_render::lights::LightSet;
-    use phr_render::output::write_image;
+    use phr_render::render::Renderer;
     use std::time::Instant;
 
     /// Frames submitted between two progress updates (each update waits for the GPU).
@@ -82,16 +80,8 @@ mod imp {
         progress.finish_and_clear();
         let film = tracer.film()?;
         let rays = tracer.rays()?;
-
-        write_image(&args.out, width, height, &film.mean())
-            .with_context(|| format!("writing {}", args.out.display()))?;
-        if let Some(p) = &args.linear {
-            write_image(p, width, height, &film.mean()).with_context(|| format!("writing {}", p.display()))?;
-        }
-        if let Some(p) = &args.variance {
-            write_image(p, width, height, &film.variance_of_mean())
-                .with_context(|| format!("writing {}", p.display()))?;
-        }
+        let cpu = Renderer::new(&scene, &geometry, view, settings, lights.as_ref()).with_seed(args.seed);
+        let notes = finish(args, &cpu, &film)?;
         let software = if gpu.is_software() { " (a software device: its times are the CPU's)" } else { "" };
         println!(
             "{}: {} triangles, {} spheres | {build} | upload {upload_ms:.0} ms ({:.1} MiB) | GPU {}{software} | \
@@ -104,6 +94,7 @@ mod imp {
             render_ms / spp.max(1) as f64,
             rays as f64 / (render_ms / 1e3) / 1e6,
         );
+        notes.iter().for_each(|line| println!("{line} (on the CPU)"));
         println!("wrote {}", args.out.display());
         Ok(())
     }

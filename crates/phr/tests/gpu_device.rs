@@ -1,9 +1,10 @@
 //! `phr render --device gpu` and `phr animate --device gpu`: with the cargo feature `gpu` and
 //! an adapter (`.ci/run` installs lavapipe and runs the ignored tests), the GPU renders the
 //! built-in scene with the CPU's random numbers, so its linear mean equals the CPU's pixel by
-//! pixel (but where rounding sent a path elsewhere), with either estimator, and animates a
-//! deforming mesh frame by frame; without the feature either flag is an error that says how to
-//! get it, and what the GPU lacks is refused either way, before any output is written.
+//! pixel (but where rounding sent a path elsewhere), with either estimator, denoises with the
+//! default filter, and animates a deforming mesh frame by frame; without the feature either
+//! flag is an error that says how to get it, and what the GPU lacks (the CPU's traversal
+//! heatmap) is refused either way, before any output is written.
 
 mod common;
 
@@ -13,21 +14,18 @@ use std::time::Duration;
 #[test]
 fn the_gpu_refuses_what_it_lacks_before_writing_anything() {
     let dir = TempDir::new("gpu-refuses");
-    for extra in [&[][..], &["--integrator", "implicit"][..], &["--denoiser", "atrous"][..]] {
-        let mut args = vec!["render", "--device", "gpu", "--out", "x.png"];
-        args.extend_from_slice(extra);
-        let out = phr_within(&dir.0, &args, Duration::from_secs(60));
-        assert_ne!(out.code, Some(0), "{extra:?}");
-        assert!(out.stderr.contains("add `--denoiser none`"), "{}", out.stderr);
-        assert!(!dir.join("x.png").exists(), "no output");
-    }
+    let args = ["render", "--device", "gpu", "--out", "x.png", "--heatmap", "h.png"];
+    let out = phr_within(&dir.0, &args, Duration::from_secs(60));
+    assert_ne!(out.code, Some(0));
+    assert!(out.stderr.contains("render it with --device cpu"), "{}", out.stderr);
+    assert!(!dir.join("x.png").exists() && !dir.join("h.png").exists(), "no output");
 }
 
 #[cfg(not(feature = "gpu"))]
 #[test]
 fn without_the_feature_the_gpu_is_an_error_that_says_how_to_get_it() {
     let dir = TempDir::new("gpu-missing");
-    let args = ["render", "--device", "gpu", "--out", "x.png", "--denoiser", "none"];
+    let args = ["render", "--device", "gpu", "--out", "x.png"];
     let out = phr_within(&dir.0, &args, Duration::from_secs(60));
     assert_ne!(out.code, Some(0));
     assert!(out.stderr.contains("--features gpu"), "{}", out.stderr);
@@ -103,4 +101,10 @@ fn the_gpu_renders_the_cpu_s_samples() {
         assert!(lit.len() > pixels.len() / 10, "{integrator}: {} lit pixels of {}", lit.len(), pixels.len());
         assert!(alike as f64 >= 0.95 * lit.len() as f64, "{integrator}: {alike} of {} lit pixels alike", lit.len());
     }
+    // The defaults (light sampling, the à-trous filter): denoised, the guide traced on the CPU.
+    let args = ["--threads", "2", "render", "builtin", "--quiet", "--device", "gpu", "--spp", "4", "--out", "d.png"];
+    let out = phr_within(&dir.0, &args, Duration::from_secs(300));
+    assert_eq!(out.code, Some(0), "{}", out.stderr);
+    assert!(out.stdout.contains("denoised (à-trous") && out.stdout.contains("(on the CPU)"), "{}", out.stdout);
+    assert_eq!((Image::png(&dir.join("d.png")).width, Image::png(&dir.join("d.png")).height), (512, 512));
 }
