@@ -21,6 +21,9 @@ pub enum GpuError {
     Failed(String),
 }
 
+/// Storage buffers the path tracer's kernel binds: the scene's ten and the frame's three.
+const STORAGE_BUFFERS: u32 = 13;
+
 /// A device and its queue.
 pub struct Gpu {
     pub device: wgpu::Device,
@@ -52,6 +55,15 @@ impl Gpu {
         };
         let info = adapter.get_info();
         let limits = adapter.limits();
+        if limits.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
+            return Err(GpuError::Device {
+                adapter: info.name,
+                reason: format!(
+                    "the path tracer binds {STORAGE_BUFFERS} storage buffers, the adapter allows {}",
+                    limits.max_storage_buffers_per_shader_stage
+                ),
+            });
+        }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("phr"),
             required_limits: limits.clone(),

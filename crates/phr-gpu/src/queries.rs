@@ -59,10 +59,10 @@ impl HitQueries {
         }
         gpu.queue.submit([encoder.finish()]);
         let bytes = gpu.read(&answers, rays.len() as u64 * 16)?;
-        Ok(bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes)
+        Ok(bytemuck::pod_collect_to_vec::<u8, [u32; 4]>(&bytes)
             .into_iter()
             .map(|[t, u, v, prim]| {
-                let prim = prim.to_bits();
+                let [t, u, v] = [t, u, v].map(f32::from_bits);
                 (prim != u32::MAX).then_some(GpuHit { t, u, v, prim })
             })
             .collect())

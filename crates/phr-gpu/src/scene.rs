@@ -85,6 +85,8 @@ pub struct Packed {
     /// over each row's cells, each cell's probability (`EnvironmentTables`); empty without one.
     pub environment_texels: Vec<[f32; 4]>,
     pub environment_tables: Vec<f32>,
+    /// The environment map's width and height, and its rotation's cosine and sine.
+    pub environment: Option<([u32; 2], [f32; 2])>,
 }
 
 impl Packed {
@@ -95,14 +97,43 @@ impl Packed {
         Self::with_tree(scene, geometry, geometry.bvh(), lights)
     }
 
-    /// [`Packed::new`] with `bvh` over `geometry`'s primitives instead of the one it holds:
-    /// a moving scene's tree, rebuilt for the GPU alone (no wide tree for the CPU).
+    /// [`Packed::new`] with `bvh` over `geometry`'s primitives instead of the one it holds.
     pub fn with_tree(
         scene: &Scene,
         geometry: &Geometry,
         bvh: &Bvh,
         lights: Option<&LightSet>,
     ) -> Result<Self, GpuError> {
+        let mut packed = Self::moved(scene, geometry, bvh, lights)?;
+        packed.materials = scene
+            .materials
+            .iter()
+            .enumerate()
+            .map(|(m, material)| {
+                let mut record = material_record(material);
+                let texture = scene.material_texture.get(m).copied().flatten();
+                record.b[2] = f32::from_bits(texture.unwrap_or(NO_TEXTURE));
+                // Masks follow the colour textures in the texture table.
+                let mask = scene.material_mask.get(m).copied().flatten();
+                record.b[3] = f32::from_bits(mask.map_or(NO_TEXTURE, |k| k + scene.textures.len() as u32));
+                record
+            })
+            .collect();
+        (packed.texels, packed.textures, packed.uvs) = texture_records(scene, geometry);
+        if let Background::Environment(map) = &scene.background {
+            let t = map.tables();
+            packed.environment_texels = t.texels.iter().map(|c| [c.x, c.y, c.z, 0.0]).collect();
+            packed.environment = Some(([t.width as u32, t.height as u32], [t.rotation.0, t.rotation.1]));
+            packed.environment_tables = [t.row_cdf, t.cell_cdf, t.cell_probability].concat();
+        }
+        Ok(packed)
+    }
+
+    /// What moves when `geometry` moves and is rebuilt into `bvh`: nodes, primitives, lights
+    /// (the rest empty): what [`GpuScene::update`] writes, laid out without the materials,
+    /// textures and environment map a moving scene keeps. Refuses what the kernels cannot
+    /// trace yet.
+    pub fn moved(scene: &Scene, geometry: &Geometry, bvh: &Bvh, lights: Option<&LightSet>) -> Result<Self, GpuError> {
         check_supported(geometry)?;
         check_tree(bvh)?;
         let n_tris = geometry.triangles.len();
@@ -146,41 +177,13 @@ impl Packed {
             // Nothing to hit: a root leaf of no primitives.
             nodes.push(GpuNode { lo: [0.0; 4], hi: [0.0; 4] });
         }
-        let materials = scene
-            .materials
-            .iter()
-            .enumerate()
-            .map(|(m, material)| {
-                let mut record = material_record(material);
-                let texture = scene.material_texture.get(m).copied().flatten();
-                record.b[2] = f32::from_bits(texture.unwrap_or(NO_TEXTURE));
-                // Masks follow the colour textures in the texture table.
-                let mask = scene.material_mask.get(m).copied().flatten();
-                record.b[3] = f32::from_bits(mask.map_or(NO_TEXTURE, |k| k + scene.textures.len() as u32));
-                record
-            })
-            .collect();
-        let (texels, textures, uvs) = texture_records(scene, geometry);
-        let (environment_texels, environment_tables) = match &scene.background {
-            Background::Environment(map) => {
-                let t = map.tables();
-                let texels = t.texels.iter().map(|c| [c.x, c.y, c.z, 0.0]).collect();
-                (texels, [t.row_cdf, t.cell_cdf, t.cell_probability].concat())
-            }
-            _ => (Vec::new(), Vec::new()),
-        };
         Ok(Self {
             nodes,
             prims,
-            materials,
             lights: gpu_lights,
             light_cdf: lights.map_or(Vec::new(), |l| l.cdf().to_vec()),
             sky_probability: lights.map(LightSet::sky_probability),
-            texels,
-            textures,
-            uvs,
-            environment_texels,
-            environment_tables,
+            ..Self::default()
         })
     }
 }
@@ -286,6 +289,8 @@ pub struct GpuScene {
     /// Light sampling: the sky's probability and the number of emitters that can be picked
     /// (`None`: the implicit estimator).
     pub(crate) lights: Option<(f32, u32)>,
+    /// The environment map's size and rotation (see [`Packed::environment`]).
+    pub(crate) environment: Option<([u32; 2], [f32; 2])>,
     /// Bytes of the last upload (all of it, or what [`GpuScene::update`] wrote).
     pub bytes: u64,
     pub prim_count: usize,
@@ -341,7 +346,8 @@ impl GpuScene {
         let group = gpu.bind("scene", &layout, &buffers.each_ref());
         let bytes = data.iter().map(|d| d.len() as u64).sum();
         let lights = packed.sky_probability.map(|sky| (sky, packed.light_cdf.len() as u32));
-        Ok(Self { layout, group, buffers, background, lights, bytes, prim_count: packed.prims.len() })
+        let environment = packed.environment;
+        Ok(Self { layout, group, buffers, background, lights, environment, bytes, prim_count: packed.prims.len() })
     }
 
     /// Replaces the scene's contents with `packed` (the same scene moved: its tree, primitives
@@ -349,15 +355,20 @@ impl GpuScene {
     /// larger ones where they do not; materials, textures and texture coordinates stay as they
     /// are. Returns without waiting for the GPU.
     pub fn update(&mut self, gpu: &Gpu, packed: &Packed) -> Result<(), GpuError> {
-        let mut rebound = false;
-        let mut bytes = 0;
         let data = contents(packed);
+        // The larger buffers first, all of them: a failure leaves the scene as it was.
+        let mut larger = Vec::new();
+        for k in MOVING.into_iter().filter(|&k| data[k].len() as u64 > self.buffers[k].size()) {
+            larger.push((k, gpu.storage(BUFFER_NAMES[k], data[k], wgpu::BufferUsages::COPY_DST)?));
+        }
+        let rebound = !larger.is_empty();
+        for (k, buffer) in larger {
+            self.buffers[k] = buffer;
+        }
+        let mut bytes = 0;
         for k in MOVING {
-            if data[k].len() as u64 <= self.buffers[k].size() {
+            if data[k].len() as u64 <= self.buffers[k].size() && !data[k].is_empty() {
                 gpu.queue.write_buffer(&self.buffers[k], 0, data[k]);
-            } else {
-                self.buffers[k] = gpu.storage(BUFFER_NAMES[k], data[k], wgpu::BufferUsages::COPY_DST)?;
-                rebound = true;
             }
             bytes += data[k].len() as u64;
         }

@@ -22,7 +22,11 @@ const GROUP: u32 = 8;
 struct FrameUniform {
     size: [u32; 4],
     seed: [u32; 4],
-    light: [f32; 4],
+    sky_probability: f32,
+    light_count: u32,
+    environment: [u32; 2],
+    rotation: [f32; 2],
+    inv_size: [f32; 2],
     origin: [f32; 4],
     forward: [f32; 4],
     horizontal: [f32; 4],
@@ -64,25 +68,30 @@ impl<'a> GpuTracer<'a> {
         max_depth: u32,
         seed: u64,
     ) -> Result<Self, GpuError> {
+        let max_groups = gpu.device.limits().max_compute_workgroups_per_dimension;
+        if width == 0 || height == 0 || width.div_ceil(GROUP).max(height.div_ceil(GROUP)) > max_groups {
+            return Err(GpuError::TooLarge(format!(
+                "an image of {width} × {height} pixels (the adapter dispatches at most {} pixels a side)",
+                u64::from(max_groups) * u64::from(GROUP)
+            )));
+        }
         let basis = camera.basis();
         let (kind, sky_a, sky_b) = match scene.background {
             Background::Constant(c) => (0, c, c),
             Background::Gradient { bottom, top } => (1, bottom, top),
-            // The map's size and rotation (`environment.wgsl`); its texels and tables are the
-            // scene's.
-            Background::Environment(ref map) => {
-                let t = map.tables();
-                let size = Vec3::new(f32::from_bits(t.width as u32), f32::from_bits(t.height as u32), t.rotation.0);
-                (2, size, Vec3::new(t.rotation.1, 0.0, 0.0))
-            }
+            // Its texels, tables, size and rotation are the scene's (`environment.wgsl`).
+            Background::Environment(_) => (2, Vec3::ZERO, Vec3::ZERO),
         };
+        let (sky_probability, light_count) = scene.lights.unwrap_or((0.0, 0));
+        let (environment, rotation) = scene.environment.unwrap_or_default();
         let uniform = FrameUniform {
             size: [width, height, 0, max_depth],
             seed: [seed as u32, (seed >> 32) as u32, kind, u32::from(scene.lights.is_some())],
-            light: match scene.lights {
-                Some((sky, emitters)) => [sky, f32::from_bits(emitters), 0.0, 0.0],
-                None => [0.0; 4],
-            },
+            sky_probability,
+            light_count,
+            environment,
+            rotation,
+            inv_size: [1.0 / width as f32, 1.0 / height as f32],
             origin: lanes(basis.origin),
             forward: lanes(basis.forward),
             horizontal: lanes(basis.horizontal),
@@ -115,7 +124,7 @@ impl<'a> GpuTracer<'a> {
     /// sample the CPU's frame `k` gives it, up to rounding), and returns without waiting.
     pub fn render(&mut self, scene: &GpuScene, frames: std::ops::Range<u32>) {
         if let Some((sky, emitters)) = scene.lights {
-            self.uniform.light = [sky, f32::from_bits(emitters), 0.0, 0.0];
+            (self.uniform.sky_probability, self.uniform.light_count) = (sky, emitters);
         }
         for k in frames {
             self.uniform.size[2] = k;
@@ -151,15 +160,31 @@ impl<'a> GpuTracer<'a> {
 
     /// What has accumulated, read back (waits for the submitted frames).
     pub fn film(&self) -> Result<Film, GpuError> {
-        let pixels = self.width as u64 * self.height as u64;
-        let read = |buffer: &wgpu::Buffer| -> Result<Vec<[f64; 3]>, GpuError> {
-            let bytes = self.gpu.read(buffer, pixels * 16)?;
-            Ok(bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes)
-                .into_iter()
-                .map(|[r, g, b, _]| [f64::from(r), f64::from(g), f64::from(b)])
-                .collect())
-        };
-        Ok(Film::from_sums(self.width, self.height, read(&self.sum)?, read(&self.sum_sq)?, self.samples))
+        let mut film = Film::new(self.width, self.height);
+        film.add_sums(&self.read_sums(&self.sum)?, &self.read_sums(&self.sum_sq)?, self.samples);
+        Ok(film)
+    }
+
+    /// Adds what has accumulated to `film` and starts the GPU's sums again (waits for the
+    /// submitted frames). The GPU sums in single precision; moving its sums into the film's
+    /// double-precision ones every few frames keeps the variance of long renders exact. The
+    /// ray count goes on.
+    pub fn drain_into(&mut self, film: &mut Film) -> Result<(), GpuError> {
+        film.add_sums(&self.read_sums(&self.sum)?, &self.read_sums(&self.sum_sq)?, self.samples);
+        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
+        encoder.clear_buffer(&self.sum, 0, None);
+        encoder.clear_buffer(&self.sum_sq, 0, None);
+        self.gpu.queue.submit([encoder.finish()]);
+        self.samples = 0;
+        Ok(())
+    }
+
+    fn read_sums(&self, buffer: &wgpu::Buffer) -> Result<Vec<[f64; 3]>, GpuError> {
+        let bytes = self.gpu.read(buffer, u64::from(self.width) * u64::from(self.height) * 16)?;
+        Ok(bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes)
+            .into_iter()
+            .map(|[r, g, b, _]| [f64::from(r), f64::from(g), f64::from(b)])
+            .collect())
     }
 
     /// Rays traced since the last [`GpuTracer::clear`] (waits for the submitted frames).

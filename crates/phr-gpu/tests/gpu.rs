@@ -313,7 +313,7 @@ fn an_updated_scene_is_the_moved_one() {
         }
         geometry.update_boxes();
         let bvh = geometry.build_report(&builder).bvh;
-        let packed = Packed::with_tree(&scene, &geometry, &bvh, None).unwrap();
+        let packed = Packed::moved(&scene, &geometry, &bvh, None).unwrap();
         uploaded.update(gpu, &packed).unwrap();
         geometry.set_bvh(bvh);
         let hits = queries.closest_hits(gpu, &uploaded, &rays).unwrap();
@@ -322,7 +322,8 @@ fn an_updated_scene_is_the_moved_one() {
             .zip(&hits)
             .filter(|(ray, g)| match (geometry.intersect(ray), g) {
                 (None, None) => false,
-                (Some(c), Some(g)) => c.prim != g.prim && (c.t - g.t).abs() > 1e-5 * c.t,
+                // Another primitive at the same distance is a tie, not a mismatch.
+                (Some(c), Some(g)) => (c.t - g.t).abs() > 1e-5 * c.t,
                 _ => true,
             })
             .count();

@@ -20,17 +20,22 @@ impl Film {
         Self { width, height, sum: vec![[0.0; 3]; n], sum_sq: vec![[0.0; 3]; n], samples: 0 }
     }
 
-    /// A film holding sums accumulated elsewhere (the GPU's kernel): per pixel the sum of
-    /// `samples` samples and of their squares, row-major from the top left.
-    pub fn from_sums(width: u32, height: u32, sum: Vec<[f64; 3]>, sum_sq: Vec<[f64; 3]>, samples: u32) -> Self {
-        let n = width as usize * height as usize;
+    /// Adds sums accumulated elsewhere (the GPU's kernel): per pixel the sum of `samples`
+    /// samples and of their squares, row-major from the top left.
+    pub fn add_sums(&mut self, sum: &[[f64; 3]], sum_sq: &[[f64; 3]], samples: u32) {
+        let n = self.sum.len();
         assert!(
             sum.len() == n && sum_sq.len() == n,
             "{n} pixels, {} sums, {} sums of squares",
             sum.len(),
             sum_sq.len()
         );
-        Self { width, height, sum, sum_sq, samples }
+        for (total, s) in self.sum.iter_mut().zip(sum).chain(self.sum_sq.iter_mut().zip(sum_sq)) {
+            for c in 0..3 {
+                total[c] += s[c];
+            }
+        }
+        self.samples += samples;
     }
 
     /// Discards everything (the view changed).

@@ -77,6 +77,8 @@ pub(crate) fn prepare(args: &AnimateArgs) -> Result<(Scene, CameraDesc)> {
     if !matches!(args.builder, Builder::Phr(_)) {
         bail!("animate rebuilds with PHR: use phr-fast, phr-hq or phr:ALPHA,DELTA")
     }
+    let size = phr_render::scene::RenderSettings { width: args.width, height: args.height, spp: 1, max_depth: 1 };
+    size.check().map_err(anyhow::Error::msg)?;
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let mut scene = open_scene(&args.scene)?;
     let view = scene.view(args.view.as_deref()).with_context(|| format!("no view {:?}", args.view))?;

@@ -59,9 +59,11 @@ mod imp {
 
     const CSV_HEADER: &str = "frame,time,pose_ms,refit_ms,build_ms,pack_ms,upload_ms,render_ms,frame_ms,rays";
 
-    pub fn run(args: &AnimateArgs, scene: Scene, view: &CameraDesc) -> Result<()> {
+    pub fn run(args: &AnimateArgs, mut scene: Scene, view: &CameraDesc) -> Result<()> {
         let Builder::Phr(options) = args.builder else { unreachable!("prepare checks the builder") };
         let gpu = Gpu::new()?;
+        // The GPU traces one tree over every triangle where it is.
+        scene.flatten_instanced();
         let mut geometry = Geometry::new(&scene);
         let mut animator = Animator::new(&scene);
         let mut dynamic = DynamicBvh::new(&geometry.boxes, options);
@@ -84,7 +86,7 @@ mod imp {
             let pose = ms(start);
             let (bvh, timings) = dynamic.update(&geometry.boxes);
             let pack_start = Instant::now();
-            let packed = Packed::with_tree(&scene, &geometry, &bvh, None)?;
+            let packed = Packed::moved(&scene, &geometry, &bvh, None)?;
             let pack = ms(pack_start);
             let upload_start = Instant::now();
             uploaded.update(&gpu, &packed)?;

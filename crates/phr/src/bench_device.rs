@@ -169,7 +169,10 @@ mod gpu {
         let uploaded = uploaded.expect("uploaded three times");
         let (w, h) = (settings.width, settings.height);
         let camera = Camera::new(view, w, h);
-        let mut tracer = GpuTracer::new(gpu, &uploaded, &camera, w, h, settings.max_depth, 0)?;
+        let mut tracer = match GpuTracer::new(gpu, &uploaded, &camera, w, h, settings.max_depth, 0) {
+            Ok(tracer) => tracer,
+            Err(e) => return Ok(GpuRun::Skipped(e.to_string())),
+        };
         let mut times = Vec::with_capacity(frames);
         for k in 0..(warmup + frames) as u32 {
             if k as usize == warmup {

@@ -43,7 +43,8 @@ mod imp {
     use phr_render::render::Renderer;
     use std::time::Instant;
 
-    /// Frames submitted between two progress updates (each update waits for the GPU).
+    /// Frames submitted between two progress updates (each update waits for the GPU and moves
+    /// its single-precision sums into the film's double-precision ones).
     const CHUNK: u32 = 16;
 
     pub fn run(args: &RenderArgs, mut scene: Scene, view: &CameraDesc, settings: &RenderSettings) -> Result<()> {
@@ -68,17 +69,17 @@ mod imp {
         let progress = if args.quiet { indicatif::ProgressBar::hidden() } else { crate::progress::bar(spp as u64) };
         progress.set_message(format!("spp on {}", gpu.describe()));
         let start = Instant::now();
+        let mut film = phr_render::film::Film::new(width, height);
         let mut frame = 0;
         while frame < spp {
             let next = (frame + CHUNK).min(spp);
             tracer.render(&uploaded, frame..next);
-            tracer.wait()?;
+            tracer.drain_into(&mut film)?;
             progress.set_position(next as u64);
             frame = next;
         }
         let render_ms = start.elapsed().as_secs_f64() * 1e3;
         progress.finish_and_clear();
-        let film = tracer.film()?;
         let rays = tracer.rays()?;
         let cpu = Renderer::new(&scene, &geometry, view, settings, lights.as_ref()).with_seed(args.seed);
         let notes = finish(args, &cpu, &film)?;

@@ -96,19 +96,25 @@ fn in_unit_sphere(rng: ptr<function, Pcg>) -> vec3<f32> {
 
 // ---- The scene ---------------------------------------------------------------------------
 
-// A BVH node: its box, and in `lo.w` / `hi.w` the bits of `phr_bvh::Node::first` / `count`.
+// A BVH node (`GpuNode`): its box, `phr_bvh::Node::first` and `count`.
 struct Node {
-    lo: vec4<f32>,
-    hi: vec4<f32>,
+    lo: vec3<f32>,
+    first: u32,
+    hi: vec3<f32>,
+    count: u32,
 }
 
-// A primitive in leaf order. Triangle: `a` = v0, `b` = e1, `c` = e2. Sphere: `a` = centre,
-// `b.x` = radius. `a.w`: the bits of the material, with SPHERE set for spheres; `b.w`: the
-// bits of the primitive's number in the scene.
+// A primitive in leaf order (`GpuPrim`). Triangle: `a` = v0, `b` = e1, `c` = e2. Sphere: `a`
+// = centre, `b.x` = radius. `material` with SPHERE set for spheres and MASKED for triangles
+// with an alpha mask; `number` the primitive's number in the scene; `emitter` its emitter's
+// number plus one (0: not a light to sample).
 struct Prim {
-    a: vec4<f32>,
-    b: vec4<f32>,
-    c: vec4<f32>,
+    a: vec3<f32>,
+    material: u32,
+    b: vec3<f32>,
+    number: u32,
+    c: vec3<f32>,
+    emitter: u32,
 }
 
 const INTERIOR: u32 = 0x80000000u;
@@ -122,19 +128,23 @@ const EPSILON: f32 = 1.1920929e-7;
 const EDGE_TOLERANCE: f32 = 8.0 * EPSILON;
 const MAX_EDGE_SLACK: f32 = 1.0e-5;
 const ROBUST_SLAB: f32 = 1.0 + 6.0 * EPSILON;
-const INFINITY: f32 = 0x1.fffffep+127;
+// The largest f32, standing for infinity (WGSL has no infinite constant): distances are
+// below it, a ray's open end is at it.
+const F32_MAX: f32 = 0x1.fffffep+127;
 
 @group(0) @binding(0) var<storage, read> nodes: array<Node>;
 @group(0) @binding(1) var<storage, read> prims: array<Prim>;
 
-// A material: `a.w` its kind (the bits of LAMBERTIAN, METAL, ...), `a.xyz` its albedo or
-// emission; metal: `b.x` fuzz, `b.y` 1 for RTIOW v3's fuzz in the ball; glass: `b.x` its index
-// of refraction; emitter: `b.x` 1 if two-sided; `b.z` the bits of its colour texture's number
-// (NO_TEXTURE: none; diffuse surfaces alone use it, as on the CPU); `b.w` the bits of its
-// alpha mask's number in `textures` (NO_TEXTURE: none).
+// A material (`GpuMaterial`): its `kind` (LAMBERTIAN, METAL, ...), `a` its albedo or emission;
+// metal: `b.x` fuzz, `b.y` 1 for RTIOW v3's fuzz in the ball; glass: `b.x` its index of
+// refraction; emitter: `b.x` 1 if two-sided; its colour texture's number (NO_TEXTURE: none;
+// diffuse surfaces alone use it, as on the CPU) and its alpha mask's number in `textures`.
 struct Material {
-    a: vec4<f32>,
-    b: vec4<f32>,
+    a: vec3<f32>,
+    kind: u32,
+    b: vec2<f32>,
+    texture: u32,
+    mask: u32,
 }
 
 @group(0) @binding(2) var<storage, read> materials: array<Material>;
@@ -164,10 +174,10 @@ fn texel_bits(t: vec4<u32>, x: i32, y: i32) -> u32 {
 }
 
 // The bilinear footprint of `uv` on image `t` (`texture::footprint`): the top left texel of
-// the four (x0, y0) and the weights of the right and lower ones; x0 = NaN for coordinates that
-// are not finite.
+// the four (x0, y0) and the weights of the right and lower ones; a weight of −1 for
+// coordinates that are not finite.
 fn footprint(t: vec4<u32>, uv: vec2<f32>) -> vec4<f32> {
-    if !(abs(uv.x) < INFINITY && abs(uv.y) < INFINITY) {
+    if !(abs(uv.x) < F32_MAX && abs(uv.y) < F32_MAX) {
         return vec4<f32>(0.0, 0.0, -1.0, 0.0);
     }
     let u = fract(uv.x) * f32(t.y) - 0.5;
@@ -175,6 +185,29 @@ fn footprint(t: vec4<u32>, uv: vec2<f32>) -> vec4<f32> {
     let x0 = floor(u);
     let y0 = floor(v);
     return vec4<f32>(x0, y0, u - x0, v - y0);
+}
+
+// glam's `lerp`, `a + (b − a) t` (WGSL's `mix` rounds otherwise).
+fn lerp(a: f32, b: f32, t: f32) -> f32 {
+    return a + (b - a) * t;
+}
+
+fn lerp3(a: vec3<f32>, b: vec3<f32>, t: f32) -> vec3<f32> {
+    return a + (b - a) * t;
+}
+
+// glam's `normalize`, `v · (1 / |v|)` (WGSL's `normalize` rounds otherwise).
+fn unit(v: vec3<f32>) -> vec3<f32> {
+    return v * (1.0 / length(v));
+}
+
+// glam's `normalize_or`: the unit vector, or `fallback` where `1 / |v|` is zero or not finite.
+fn unit_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let rcp = 1.0 / length(v);
+    if rcp > 0.0 && rcp <= F32_MAX {
+        return v * rcp;
+    }
+    return fallback;
 }
 
 fn coverage(t: vec4<u32>, x: i32, y: i32) -> f32 {
@@ -191,9 +224,9 @@ fn covers(mask: u32, uv: vec2<f32>) -> bool {
     }
     let x = i32(f.x);
     let y = i32(f.y);
-    let top = mix(coverage(t, x, y), coverage(t, x + 1, y), f.z);
-    let bottom = mix(coverage(t, x, y + 1), coverage(t, x + 1, y + 1), f.z);
-    return mix(top, bottom, f.w) >= threshold;
+    let top = lerp(coverage(t, x, y), coverage(t, x + 1, y), f.z);
+    let bottom = lerp(coverage(t, x, y + 1), coverage(t, x + 1, y + 1), f.z);
+    return lerp(top, bottom, f.w) >= threshold;
 }
 
 
@@ -212,15 +245,15 @@ fn make_ray(origin: vec3<f32>, dir: vec3<f32>, tmin: f32, tmax: f32) -> Ray {
     return Ray(origin, dir, 1.0 / safe, tmin, tmax);
 }
 
-// Entry distance into a node's box, or INFINITY.
+// Entry distance into a node's box, or F32_MAX.
 fn box_entry(node: Node, ray: Ray) -> f32 {
-    let t0 = (node.lo.xyz - ray.origin) * ray.inv_dir;
-    let t1 = (node.hi.xyz - ray.origin) * ray.inv_dir;
+    let t0 = (node.lo - ray.origin) * ray.inv_dir;
+    let t1 = (node.hi - ray.origin) * ray.inv_dir;
     let near = min(t0, t1);
     let far = max(t0, t1);
     let tnear = max(max(near.x, near.y), max(near.z, ray.tmin));
     let tfar = min(min(far.x, far.y), min(far.z, ray.tmax)) * ROBUST_SLAB;
-    return select(INFINITY, tnear, tnear <= tfar);
+    return select(F32_MAX, tnear, tnear <= tfar);
 }
 
 struct Hit {
@@ -233,12 +266,12 @@ struct Hit {
     prim: u32,
 }
 
-// Möller–Trumbore with the CPU's edge tolerance. Returns (t, u, v), t = INFINITY for a miss.
+// Möller–Trumbore with the CPU's edge tolerance. Returns (t, u, v), t = F32_MAX for a miss.
 fn intersect_triangle(ray: Ray, v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>) -> vec3<f32> {
-    let miss = vec3<f32>(INFINITY, 0.0, 0.0);
+    let miss = vec3<f32>(F32_MAX, 0.0, 0.0);
     let p = cross(ray.dir, e2);
     let det = dot(e1, p);
-    if !(abs(det) > 0.0 && abs(det) < INFINITY) {
+    if !(abs(det) > 0.0 && abs(det) < F32_MAX) {
         return miss;
     }
     let inv_det = 1.0 / det;
@@ -253,7 +286,7 @@ fn intersect_triangle(ray: Ray, v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>) -> 
         return miss;
     }
     let t = dot(e2, q) * inv_det;
-    if t > ray.tmin && t <= ray.tmax && t < INFINITY {
+    if t > ray.tmin && t <= ray.tmax && t < F32_MAX {
         return vec3<f32>(t, u, v);
     }
     return miss;
@@ -267,10 +300,11 @@ fn intersect_sphere(ray: Ray, center: vec3<f32>, radius: f32) -> f32 {
     let l = f + (b / a) * ray.dir;
     let disc = a * (r * r - dot(l, l));
     if disc < 0.0 {
-        return INFINITY;
+        return F32_MAX;
     }
     let sq = sqrt(disc);
-    let q = b + select(-sq, sq, b >= 0.0);
+    // `b.signum()`: the sign bit, so that −0 counts as negative.
+    let q = b + select(sq, -sq, (bitcast<u32>(b) & 0x80000000u) != 0u);
     var t0 = 0.0;
     var t1 = 0.0;
     if q != 0.0 {
@@ -285,29 +319,29 @@ fn intersect_sphere(ray: Ray, center: vec3<f32>, radius: f32) -> f32 {
     if far > ray.tmin && far <= ray.tmax {
         return far;
     }
-    return INFINITY;
+    return F32_MAX;
 }
 
 // Tests primitive `slot` against `ray` and keeps it in `best` if it is closer (or as close
 // with a lower number); shrinks `ray.tmax` to the best distance.
 fn test_prim(slot: u32, ray: ptr<function, Ray>, best: ptr<function, Hit>) {
     let prim = prims[slot];
-    let number = bitcast<u32>(prim.b.w);
-    var hit = vec3<f32>(INFINITY, 0.0, 0.0);
-    let bits = bitcast<u32>(prim.a.w);
+    let number = prim.number;
+    var hit = vec3<f32>(F32_MAX, 0.0, 0.0);
+    let bits = prim.material;
     if (bits & SPHERE) == 0u {
-        hit = intersect_triangle(*ray, prim.a.xyz, prim.b.xyz, prim.c.xyz);
+        hit = intersect_triangle(*ray, prim.a, prim.b, prim.c);
         // Where its material's alpha mask does not cover it, a triangle is no hit.
-        if (bits & MASKED) != 0u && hit.x < INFINITY {
-            let mask = bitcast<u32>(materials[bits & ~MASKED].b.w);
+        if (bits & MASKED) != 0u && hit.x < F32_MAX {
+            let mask = materials[bits & ~MASKED].mask;
             if !covers(mask, uv_at(number, hit.y, hit.z)) {
                 return;
             }
         }
     } else {
-        hit.x = intersect_sphere(*ray, prim.a.xyz, prim.b.x);
+        hit.x = intersect_sphere(*ray, prim.a, prim.b.x);
     }
-    if hit.x == INFINITY {
+    if hit.x == F32_MAX {
         return;
     }
     if hit.x < (*ray).tmax || (hit.x == (*ray).tmax && ((*best).slot == NO_HIT || number < (*best).prim)) {
@@ -330,8 +364,8 @@ fn any_hit(ray: Ray) -> bool {
 // a stack with its entry distance, skipped once a closer hit is known.
 fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
     var ray = ray0;
-    var best = Hit(INFINITY, 0.0, 0.0, NO_HIT, NO_HIT);
-    if box_entry(nodes[0], ray) == INFINITY {
+    var best = Hit(F32_MAX, 0.0, 0.0, NO_HIT, NO_HIT);
+    if box_entry(nodes[0], ray) == F32_MAX {
         return best;
     }
     var stack_node: array<u32, STACK>;
@@ -340,8 +374,8 @@ fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
     var node = 0u;
     loop {
         let n = nodes[node];
-        let first = bitcast<u32>(n.lo.w);
-        let count = bitcast<u32>(n.hi.w);
+        let first = n.first;
+        let count = n.count;
         var next = NO_HIT;
         if (count & INTERIOR) == 0u {
             for (var i = 0u; i < count; i++) {
@@ -353,8 +387,8 @@ fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
         } else {
             let d0 = box_entry(nodes[first], ray);
             let d1 = box_entry(nodes[first + 1u], ray);
-            let hit0 = d0 < INFINITY;
-            let hit1 = d1 < INFINITY;
+            let hit0 = d0 < F32_MAX;
+            let hit1 = d1 < F32_MAX;
             if hit0 && hit1 {
                 let near_first = d0 <= d1;
                 next = select(first + 1u, first, near_first);

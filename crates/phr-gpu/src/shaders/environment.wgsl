@@ -2,8 +2,8 @@
 // `envmap` (bilinear between texels, row 0 straight up) and importance sampling by luminance
 // over its cells, from the CPU's tables in single precision (`EnvironmentTables`): the
 // density is the cell's probability over the solid angle it covers, as on the CPU.
-// `frame.sky_a` holds the bits of the map's width and height and its rotation's cosine,
-// `frame.sky_b.x` the sine.
+// `frame.environment` holds the map's width and height, `frame.rotation` its rotation's
+// cosine and sine.
 
 const ENVIRONMENT: u32 = 2u;
 const PI: f32 = 3.141592653589793;
@@ -14,22 +14,22 @@ const PI: f32 = 3.141592653589793;
 @group(0) @binding(9) var<storage, read> environment_tables: array<f32>;
 
 fn env_width() -> u32 {
-    return bitcast<u32>(frame.sky_a.x);
+    return frame.environment.x;
 }
 
 fn env_rows() -> u32 {
-    return bitcast<u32>(frame.sky_a.y) - 1u;
+    return frame.environment.y - 1u;
 }
 
 fn env_to_local(d: vec3<f32>) -> vec3<f32> {
-    let c = frame.sky_a.z;
-    let s = frame.sky_b.x;
+    let c = frame.rotation.x;
+    let s = frame.rotation.y;
     return vec3<f32>(c * d.x - s * d.z, d.y, s * d.x + c * d.z);
 }
 
 fn env_to_world(d: vec3<f32>) -> vec3<f32> {
-    let c = frame.sky_a.z;
-    let s = frame.sky_b.x;
+    let c = frame.rotation.x;
+    let s = frame.rotation.y;
     return vec3<f32>(c * d.x + s * d.z, d.y, -s * d.x + c * d.z);
 }
 
@@ -59,22 +59,22 @@ fn env_texel(x: u32, y: u32) -> vec3<f32> {
 
 fn env_radiance(dir: vec3<f32>) -> vec3<f32> {
     let uvs = env_uv(env_to_local(dir));
-    if !(abs(uvs.x) < INFINITY && abs(uvs.y) < INFINITY) {
+    if !(abs(uvs.x) < F32_MAX && abs(uvs.y) < F32_MAX) {
         return vec3<f32>(0.0);
     }
     let c = env_cell(uvs.xy);
     let x = u32(c.x);
     let y = u32(c.y);
     let x1 = (x + 1u) % env_width();
-    let top = mix(env_texel(x, y), env_texel(x1, y), c.z);
-    let bottom = mix(env_texel(x, y + 1u), env_texel(x1, y + 1u), c.z);
-    return mix(top, bottom, c.w);
+    let top = lerp3(env_texel(x, y), env_texel(x1, y), c.z);
+    let bottom = lerp3(env_texel(x, y + 1u), env_texel(x1, y + 1u), c.z);
+    return lerp3(top, bottom, c.w);
 }
 
 // Density per solid angle with which `env_sample` picks the unit direction `dir`.
 fn env_pdf(dir: vec3<f32>) -> f32 {
     let uvs = env_uv(env_to_local(dir));
-    if !(abs(uvs.x) < INFINITY && abs(uvs.y) < INFINITY) || uvs.z <= 0.0 {
+    if !(abs(uvs.x) < F32_MAX && abs(uvs.y) < F32_MAX) || uvs.z <= 0.0 {
         return 0.0;
     }
     let c = env_cell(uvs.xy);
@@ -126,9 +126,9 @@ fn env_sample(u1: f32, u2: f32) -> vec4<f32> {
     let phi = TAU * u;
     let theta = PI * v;
     let local = vec3<f32>(sin(theta) * sin(phi), cos(theta), -sin(theta) * cos(phi));
-    let dir = normalize(env_to_world(local));
+    let dir = unit(env_to_world(local));
     let pdf = env_pdf(dir);
-    if !(pdf > 0.0 && pdf < INFINITY) {
+    if !(pdf > 0.0 && pdf < F32_MAX) {
         return vec4<f32>(0.0);
     }
     return vec4<f32>(dir, pdf);

@@ -7,9 +7,16 @@ struct QueryRay {
     dir: vec4<f32>,
 }
 
-// t, u, v, and the bits of the primitive's number (0xffffffff: no hit).
+// The closest hit's distance, barycentrics and primitive number (NO_HIT: none).
+struct Answer {
+    t: f32,
+    u: f32,
+    v: f32,
+    prim: u32,
+}
+
 @group(1) @binding(0) var<storage, read> queries: array<QueryRay>;
-@group(1) @binding(1) var<storage, read_write> answers: array<vec4<f32>>;
+@group(1) @binding(1) var<storage, read_write> answers: array<Answer>;
 
 @compute @workgroup_size(64)
 fn closest(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -18,6 +25,6 @@ fn closest(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let q = queries[i];
-    let hit = closest_hit(make_ray(q.origin.xyz, q.dir.xyz, q.origin.w, min(q.dir.w, INFINITY)));
-    answers[i] = vec4<f32>(hit.t, hit.u, hit.v, bitcast<f32>(hit.prim));
+    let hit = closest_hit(make_ray(q.origin.xyz, q.dir.xyz, q.origin.w, min(q.dir.w, F32_MAX)));
+    answers[i] = Answer(hit.t, hit.u, hit.v, hit.prim);
 }

@@ -8,26 +8,26 @@
 fn power_heuristic(pdf: f32, other: f32) -> f32 {
     let a = pdf * pdf;
     let b = other * other;
-    if a + b > 0.0 && a + b < INFINITY {
+    if a + b > 0.0 && a + b < F32_MAX {
         return a / (a + b);
     }
-    if pdf > INFINITY {
+    if pdf > F32_MAX {
         return 1.0;
     }
     return 0.0;
 }
 
 fn sky_probability() -> f32 {
-    return frame.light.x;
+    return frame.sky_probability;
 }
 
 fn light_count() -> u32 {
-    return bitcast<u32>(frame.light.y);
+    return frame.light_count;
 }
 
 // `Material::has_lobe`: diffuse, or metal with fuzz.
 fn has_lobe(m: Material) -> bool {
-    let kind = bitcast<u32>(m.a.w);
+    let kind = m.kind;
     return kind == LAMBERTIAN || (kind == METAL && m.b.x > 0.0);
 }
 
@@ -38,14 +38,14 @@ fn lobe_pdf(m: Material, dir: vec3<f32>, normal: vec3<f32>, front: bool, out: ve
     if cos_out <= 0.0 {
         return 0.0;
     }
-    let kind = bitcast<u32>(m.a.w);
+    let kind = m.kind;
     if kind == LAMBERTIAN {
         return cos_out * FRAC_1_PI;
     }
     if kind != METAL || m.b.x <= 0.0 {
         return 0.0;
     }
-    let r = normalize(reflect(normalize(dir), facing));
+    let r = unit(reflect(unit(dir), facing));
     let f = min(m.b.x, 1.0);
     let b = dot(out, r);
     let c = cross(out, r);
@@ -95,15 +95,15 @@ fn pdf_hit(emitter: u32, seen_from: vec3<f32>, point: vec3<f32>, normal: vec3<f3
         return 0.0;
     }
     let light = lights[emitter - 1u];
-    let selection = light.c.w;
-    if (bitcast<u32>(light.a.w) & SPHERE) == 0u {
+    let selection = light.selection;
+    if (light.material & SPHERE) == 0u {
         let to_light = point - seen_from;
         let dist2 = dot(to_light, to_light);
         let cos_light = abs(dot(normal, to_light)) / sqrt(dist2);
-        let pdf = selection / light.b.w * dist2 / cos_light;
-        return select(0.0, pdf, pdf < INFINITY);
+        let pdf = selection / light.area * dist2 / cos_light;
+        return select(0.0, pdf, pdf < F32_MAX);
     }
-    let one_minus_cos_max = cone(light.a.xyz, light.b.x, seen_from);
+    let one_minus_cos_max = cone(light.a, light.b.x, seen_from);
     if one_minus_cos_max <= 0.0 {
         return 0.0;
     }
@@ -148,7 +148,8 @@ fn sample_sky(facing: vec3<f32>, rng: ptr<function, Pcg>) -> LightSample {
 
 // Duff et al. 2017 (glam's `any_orthonormal_pair`).
 fn orthonormal_pair(n: vec3<f32>) -> array<vec3<f32>, 2> {
-    let sign = select(1.0, -1.0, n.z < 0.0);
+    // glam's `signum`: −1 for −0 too.
+    let sign = select(1.0, -1.0, (bitcast<u32>(n.z) & 0x80000000u) != 0u);
     let a = -1.0 / (sign + n.z);
     let b = n.x * n.y * a;
     return array<vec3<f32>, 2>(
@@ -183,28 +184,28 @@ fn sample_lights(position: vec3<f32>, facing: vec3<f32>, rng: ptr<function, Pcg>
         }
     }
     let light = lights[min(lo, n - 1u)];
-    let selection = light.c.w;
+    let selection = light.selection;
     if !(selection > 0.0) {
         return NO_LIGHT;
     }
     let u1 = next_f32(rng);
     let u2 = next_f32(rng);
-    let material = materials[bitcast<u32>(light.a.w) & ~SPHERE];
+    let material = materials[light.material & ~SPHERE];
     var sample: LightSample;
-    if (bitcast<u32>(light.a.w) & SPHERE) == 0u {
-        let v0 = light.a.xyz;
-        let e1 = light.b.xyz;
-        let e2 = light.c.xyz;
+    if (light.material & SPHERE) == 0u {
+        let v0 = light.a;
+        let e1 = light.b;
+        let e2 = light.c;
         let s = sqrt(u1);
         let point = v0 + e1 * (s * (1.0 - u2)) + e2 * (s * u2);
         let to_light = point - position;
         let dist2 = dot(to_light, to_light);
         let dir = to_light / sqrt(dist2);
-        let cos_light = -dot(normalize(cross(e1, e2)), dir);
-        let pdf = selection / light.b.w * dist2 / abs(cos_light);
+        let cos_light = -dot(unit(cross(e1, e2)), dir);
+        let pdf = selection / light.area * dist2 / abs(cos_light);
         sample = LightSample(dir, point, true, emitted(material, cos_light > 0.0), pdf);
     } else {
-        let center = light.a.xyz;
+        let center = light.a;
         let radius = light.b.x;
         let one_minus_cos_max = cone(center, radius, position);
         if one_minus_cos_max <= 0.0 {
@@ -218,7 +219,7 @@ fn sample_lights(position: vec3<f32>, facing: vec3<f32>, rng: ptr<function, Pcg>
         let axis = to_center / dist;
         let basis = orthonormal_pair(axis);
         let phi = TAU * u2;
-        let dir = normalize(basis[0] * (sin_t * cos(phi)) + basis[1] * (sin_t * sin(phi)) + axis * cos_t);
+        let dir = unit(basis[0] * (sin_t * cos(phi)) + basis[1] * (sin_t * sin(phi)) + axis * cos_t);
         let r = abs(radius);
         let t = dist * cos_t - sqrt(max(r * r - dist * dist * sin_t * sin_t, 0.0));
         let point = position + dir * t;
@@ -226,7 +227,7 @@ fn sample_lights(position: vec3<f32>, facing: vec3<f32>, rng: ptr<function, Pcg>
         sample = LightSample(dir, point, true, emitted(material, front), selection / (TAU * one_minus_cos_max));
     }
     let d = abs(sample.dir);
-    if !(sample.pdf > 0.0 && sample.pdf < INFINITY && max(max(d.x, d.y), d.z) < INFINITY) {
+    if !(sample.pdf > 0.0 && sample.pdf < F32_MAX && max(max(d.x, d.y), d.z) < F32_MAX) {
         return NO_LIGHT;
     }
     return sample;
@@ -251,7 +252,7 @@ fn trace_with_lights(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
         rays++;
         let hit = closest_hit(ray);
         if hit.slot == NO_HIT {
-            let dir = normalize(ray.dir);
+            let dir = unit(ray.dir);
             var weight = 1.0;
             if lit {
                 weight = power_heuristic(lit_pdf, pdf_sky(lit_facing, dir));
@@ -275,7 +276,7 @@ fn trace_with_lights(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
         let facing = select(-surface.normal, surface.normal, surface.front);
         let lobe = has_lobe(m);
         // The lobe's scatter weight: the albedo, textured.
-        let albedo = textured(m, surface, m.a.xyz);
+        let albedo = textured(m, surface, m.a);
         if lobe {
             let sample = sample_lights(surface.position, facing, rng);
             if sample.pdf > 0.0 {
@@ -287,7 +288,7 @@ fn trace_with_lights(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
                     if sample.finite {
                         shadow = make_ray(origin, sample.point - origin, 0.0, 1.0 - 1.0e-4);
                     } else {
-                        shadow = make_ray(origin, sample.dir, 0.0, INFINITY);
+                        shadow = make_ray(origin, sample.dir, 0.0, F32_MAX);
                     }
                     let weight = power_heuristic(sample.pdf, pdf);
                     if !any_hit(shadow) {
@@ -305,12 +306,12 @@ fn trace_with_lights(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
             lit = true;
             lit_position = surface.position;
             lit_facing = facing;
-            lit_pdf = lobe_pdf(m, ray.dir, surface.normal, surface.front, normalize(s.dir));
+            lit_pdf = lobe_pdf(m, ray.dir, surface.normal, surface.front, unit(s.dir));
         } else {
             throughput *= s.weight.xyz;
             lit = false;
         }
-        ray = make_ray(spawn_origin(surface, s.dir), s.dir, 0.0, INFINITY);
+        ray = make_ray(spawn_origin(surface, s.dir), s.dir, 0.0, F32_MAX);
         segment++;
         if segment >= RR_START {
             let survive = min(max(max(throughput.x, throughput.y), throughput.z), 1.0);

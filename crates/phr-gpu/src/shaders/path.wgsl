@@ -12,8 +12,14 @@ struct Frame {
     // seed (low, high), background kind (0 constant, 1 gradient, 2 environment map), 1 for
     // light sampling
     seed: vec4<u32>,
-    // Light sampling: the sky's probability, the bits of the number of emitters to pick from.
-    light: vec4<f32>,
+    // Light sampling: the sky's probability, the number of emitters to pick from.
+    sky_probability: f32,
+    light_count: u32,
+    // An environment map's width and height, and its rotation's cosine and sine.
+    environment: vec2<u32>,
+    rotation: vec2<f32>,
+    // 1 / width, 1 / height.
+    inv_size: vec2<f32>,
     origin: vec4<f32>,
     forward: vec4<f32>,
     horizontal: vec4<f32>,
@@ -34,12 +40,15 @@ const TRIANGLE_OFFSET: f32 = 1.0e-6;
 const SPHERE_OFFSET: f32 = 1500.0 / 16777216.0;
 
 // An emitter (`GpuLight`): a triangle (`a` = v0, `b` = e1, `c` = e2) or a sphere (`a` =
-// centre, `b.x` = radius); `a.w` the bits of its material with SPHERE for spheres, `b.w` its
-// area, `c.w` the probability of picking it.
+// centre, `b.x` = radius); its material with SPHERE for spheres, its area, the probability of
+// picking it.
 struct Light {
-    a: vec4<f32>,
-    b: vec4<f32>,
-    c: vec4<f32>,
+    a: vec3<f32>,
+    material: u32,
+    b: vec3<f32>,
+    area: f32,
+    c: vec3<f32>,
+    selection: f32,
 }
 
 @group(0) @binding(3) var<storage, read> lights: array<Light>;
@@ -73,19 +82,13 @@ fn sky(unit_dir: vec3<f32>) -> vec3<f32> {
     return (1.0 - a) * frame.sky_a.xyz + a * frame.sky_b.xyz;
 }
 
-fn normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
-    let l = length(v);
-    if l > 0.0 && l < INFINITY {
-        return v / l;
-    }
-    return fallback;
-}
-
 fn schlick(cos_theta: f32, eta: f32) -> f32 {
     let r = (1.0 - eta) / (1.0 + eta);
     let r0 = r * r;
     let m = 1.0 - cos_theta;
-    return r0 + (1.0 - r0) * m * m * m * m * m;
+    // `powi(5)`: (m²)² m.
+    let m2 = m * m;
+    return r0 + (1.0 - r0) * (m2 * m2 * m);
 }
 
 fn refract_dir(v: vec3<f32>, n: vec3<f32>, eta: f32, cos_theta: f32) -> vec3<f32> {
@@ -109,28 +112,28 @@ struct Surface {
 
 fn surface_at(ray: Ray, hit: Hit) -> Surface {
     let prim = prims[hit.slot];
-    let bits = bitcast<u32>(prim.a.w);
+    let bits = prim.material;
     var p: vec3<f32>;
     var n: vec3<f32>;
     var rel: f32;
     var uv = vec2<f32>(0.0);
     if (bits & SPHERE) == 0u {
         uv = uv_at(hit.prim, hit.u, hit.v);
-        p = prim.a.xyz + prim.b.xyz * hit.u + prim.c.xyz * hit.v;
-        n = normalize_or(cross(prim.b.xyz, prim.c.xyz), vec3<f32>(0.0, 0.0, 1.0));
+        p = prim.a + prim.b * hit.u + prim.c * hit.v;
+        n = unit_or(cross(prim.b, prim.c), vec3<f32>(0.0, 0.0, 1.0));
         rel = TRIANGLE_OFFSET;
     } else {
-        let c = prim.a.xyz;
+        let c = prim.a;
         let radius = prim.b.x;
         let on_ray = ray.origin + ray.dir * hit.t;
         p = c + (on_ray - c) * (abs(radius) / length(on_ray - c));
-        n = normalize_or((p - c) / radius, vec3<f32>(0.0, 1.0, 0.0));
+        n = unit_or((p - c) / radius, vec3<f32>(0.0, 1.0, 0.0));
         rel = SPHERE_OFFSET;
     }
     let front = dot(ray.dir, n) < 0.0;
     let ap = abs(p);
     let offset = rel * (1.0 + max(max(ap.x, ap.y), ap.z));
-    return Surface(p, n, front, bits & ~(SPHERE | MASKED), offset, bitcast<u32>(prim.c.w), uv);
+    return Surface(p, n, front, bits & ~(SPHERE | MASKED), offset, prim.emitter, uv);
 }
 
 fn srgb_decode(c: u32) -> f32 {
@@ -156,17 +159,16 @@ fn sample_texture(index: u32, uv: vec2<f32>) -> vec3<f32> {
     }
     let x = i32(f.x);
     let y = i32(f.y);
-    let top = mix(texel(t, x, y), texel(t, x + 1, y), f.z);
-    let bottom = mix(texel(t, x, y + 1), texel(t, x + 1, y + 1), f.z);
-    return mix(top, bottom, f.w);
+    let top = lerp3(texel(t, x, y), texel(t, x + 1, y), f.z);
+    let bottom = lerp3(texel(t, x, y + 1), texel(t, x + 1, y + 1), f.z);
+    return lerp3(top, bottom, f.w);
 }
 
 // A diffuse hit's scattering weight `weight` times its material's texture at the hit, if it has
 // one (`PathTracer::textured`).
 fn textured(m: Material, s: Surface, weight: vec3<f32>) -> vec3<f32> {
-    let texture = bitcast<u32>(m.b.z);
-    if bitcast<u32>(m.a.w) == LAMBERTIAN && texture != NO_TEXTURE {
-        return weight * sample_texture(texture, s.uv);
+    if m.kind == LAMBERTIAN && m.texture != NO_TEXTURE {
+        return weight * sample_texture(m.texture, s.uv);
     }
     return weight;
 }
@@ -185,7 +187,7 @@ struct Scatter {
 
 fn scatter(m: Material, dir: vec3<f32>, normal: vec3<f32>, front: bool, rng: ptr<function, Pcg>) -> Scatter {
     let facing = select(-normal, normal, front);
-    let kind = bitcast<u32>(m.a.w);
+    let kind = m.kind;
     let absorbed = Scatter(vec3<f32>(0.0), vec4<f32>(0.0));
     if kind == LAMBERTIAN {
         var d = facing + unit_vector(rng);
@@ -193,10 +195,10 @@ fn scatter(m: Material, dir: vec3<f32>, normal: vec3<f32>, front: bool, rng: ptr
         if max(max(ad.x, ad.y), ad.z) < 1.0e-8 {
             d = facing;
         }
-        return Scatter(d, vec4<f32>(m.a.xyz, 1.0));
+        return Scatter(d, vec4<f32>(m.a, 1.0));
     }
     if kind == METAL {
-        let reflected = normalize(reflect(normalize(dir), facing));
+        let reflected = unit(reflect(unit(dir), facing));
         var jitter: vec3<f32>;
         if m.b.y != 0.0 {
             jitter = in_unit_sphere(rng);
@@ -205,21 +207,21 @@ fn scatter(m: Material, dir: vec3<f32>, normal: vec3<f32>, front: bool, rng: ptr
         }
         let d = reflected + min(m.b.x, 1.0) * jitter;
         if dot(d, facing) > 0.0 {
-            return Scatter(d, vec4<f32>(m.a.xyz, 1.0));
+            return Scatter(d, vec4<f32>(m.a, 1.0));
         }
         return absorbed;
     }
     if kind == DIELECTRIC {
-        let unit = normalize(dir);
+        let unit_dir = unit(dir);
         let ior = m.b.x;
         let eta = select(ior, 1.0 / ior, front);
-        let cos_theta = min(dot(-unit, facing), 1.0);
+        let cos_theta = min(dot(-unit_dir, facing), 1.0);
         let sin_theta = sqrt(max(1.0 - cos_theta * cos_theta, 0.0));
         var d: vec3<f32>;
         if eta * sin_theta > 1.0 || schlick(cos_theta, eta) > next_f32(rng) {
-            d = reflect(unit, facing);
+            d = reflect(unit_dir, facing);
         } else {
-            d = refract_dir(unit, facing, eta, cos_theta);
+            d = refract_dir(unit_dir, facing, eta, cos_theta);
         }
         return Scatter(d, vec4<f32>(1.0, 1.0, 1.0, 1.0));
     }
@@ -227,8 +229,8 @@ fn scatter(m: Material, dir: vec3<f32>, normal: vec3<f32>, front: bool, rng: ptr
 }
 
 fn emitted(m: Material, front: bool) -> vec3<f32> {
-    if bitcast<u32>(m.a.w) == EMISSIVE && (front || m.b.x != 0.0) {
-        return m.a.xyz;
+    if m.kind == EMISSIVE && (front || m.b.x != 0.0) {
+        return m.a;
     }
     return vec3<f32>(0.0);
 }
@@ -249,7 +251,7 @@ fn trace_implicit(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
         rays++;
         let hit = closest_hit(ray);
         if hit.slot == NO_HIT {
-            radiance += throughput * sky(normalize(ray.dir));
+            radiance += throughput * sky(unit(ray.dir));
             break;
         }
         let surface = surface_at(ray, hit);
@@ -260,7 +262,7 @@ fn trace_implicit(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
             break;
         }
         throughput *= textured(m, surface, s.weight.xyz);
-        ray = make_ray(spawn_origin(surface, s.dir), s.dir, 0.0, INFINITY);
+        ray = make_ray(spawn_origin(surface, s.dir), s.dir, 0.0, F32_MAX);
     }
     return PathSample(radiance, rays);
 }
@@ -276,10 +278,11 @@ fn render(@builtin(global_invocation_id) id: vec3<u32>) {
     let seed = frame.seed.xy;
     var rng = pcg_for_pixel(seed, frame.size.z, pixel);
     let jitter = pixel_jitter(seed, frame.size.z, pixel);
-    let sx = 2.0 * (f32(id.x) + jitter.x) / f32(width) - 1.0;
-    let sy = 2.0 * (f32(id.y) + jitter.y) / f32(height) - 1.0;
-    let camera_dir = normalize(frame.forward.xyz + sx * frame.horizontal.xyz - sy * frame.vertical.xyz);
-    let ray = make_ray(frame.origin.xyz, camera_dir, 0.0, INFINITY);
+    // `Camera::ray`.
+    let sx = 2.0 * (f32(id.x) + jitter.x) * frame.inv_size.x - 1.0;
+    let sy = 2.0 * (f32(id.y) + jitter.y) * frame.inv_size.y - 1.0;
+    let camera_dir = unit(frame.forward.xyz + sx * frame.horizontal.xyz - sy * frame.vertical.xyz);
+    let ray = make_ray(frame.origin.xyz, camera_dir, 0.0, F32_MAX);
     var sample: PathSample;
     if frame.seed.w == 0u {
         sample = trace_implicit(ray, &rng);
