@@ -24,7 +24,8 @@ pub enum GpuError {
 /// Storage buffers the path tracer's kernel binds: the scene's ten and the frame's three.
 const STORAGE_BUFFERS: u32 = 13;
 
-/// A device and its queue.
+/// A device and its queue (a clone is another handle on the same device).
+#[derive(Clone)]
 pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,

@@ -12,18 +12,21 @@
 //! lights, or light sampling with MIS and Russian roulette) one sample per pixel per frame,
 //! accumulating on the GPU, with the CPU's random numbers per pixel drawn in the CPU's order,
 //! so the two converge to the same image; [`queries::HitQueries`] answers closest-hit queries
-//! for a batch of rays, which the tests hold against the CPU's.
+//! for a batch of rays, which the tests hold against the CPU's. [`frames::GpuFrames`] traces
+//! the viewer's frames (`phr view --device gpu`).
 //!
 //! Colour textures, alpha masks and environment maps are looked up and sampled as on the CPU.
 //! Not yet on the GPU (each refused with a clear error, never drawn wrong): meshes placed by
 //! instances (front ends flatten them), trees other than binary ones, the denoiser.
 
 pub mod device;
+pub mod frames;
 pub mod queries;
 pub mod scene;
 pub mod trace;
 
 pub use device::{Gpu, GpuError};
+pub use frames::GpuFrames;
 pub use queries::{GpuHit, HitQueries};
 pub use scene::GpuScene;
 pub use trace::GpuTracer;

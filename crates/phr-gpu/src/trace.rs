@@ -40,8 +40,8 @@ fn lanes(v: Vec3) -> [f32; 4] {
 }
 
 /// The GPU's renderer of one view of a [`GpuScene`], at one size, depth and seed.
-pub struct GpuTracer<'a> {
-    gpu: &'a Gpu,
+pub struct GpuTracer {
+    gpu: Gpu,
     pipeline: wgpu::ComputePipeline,
     group: wgpu::BindGroup,
     frame: wgpu::Buffer,
@@ -55,12 +55,12 @@ pub struct GpuTracer<'a> {
     samples: u32,
 }
 
-impl<'a> GpuTracer<'a> {
+impl GpuTracer {
     /// The renderer of `scene` seen by `camera` (made for `width × height`), paths of at most
     /// `max_depth` segments, random numbers of `seed` (the CPU's for the same seed); with light
     /// sampling if `scene` was uploaded with a light set.
     pub fn new(
-        gpu: &'a Gpu,
+        gpu: &Gpu,
         scene: &GpuScene,
         camera: &Camera,
         width: u32,
@@ -75,7 +75,6 @@ impl<'a> GpuTracer<'a> {
                 u64::from(max_groups) * u64::from(GROUP)
             )));
         }
-        let basis = camera.basis();
         let (kind, sky_a, sky_b) = match scene.background {
             Background::Constant(c) => (0, c, c),
             Background::Gradient { bottom, top } => (1, bottom, top),
@@ -92,10 +91,10 @@ impl<'a> GpuTracer<'a> {
             environment,
             rotation,
             inv_size: [1.0 / width as f32, 1.0 / height as f32],
-            origin: lanes(basis.origin),
-            forward: lanes(basis.forward),
-            horizontal: lanes(basis.horizontal),
-            vertical: lanes(basis.vertical),
+            origin: [0.0; 4],
+            forward: [0.0; 4],
+            horizontal: [0.0; 4],
+            vertical: [0.0; 4],
             sky_a: lanes(sky_a),
             sky_b: lanes(sky_b),
         };
@@ -116,7 +115,20 @@ impl<'a> GpuTracer<'a> {
         let group = gpu.bind("path tracer", &layout, &[&frame, &sum, &sum_sq, &rays]);
         let source = format!("{COMMON_WGSL}\n{PATH_WGSL}\n{LIGHTS_WGSL}\n{ENVIRONMENT_WGSL}");
         let pipeline = gpu.pipeline("path tracer", &source, "render", &[&scene.layout, &layout]);
-        Ok(Self { gpu, pipeline, group, frame, sum, sum_sq, rays, uniform, width, height, samples: 0 })
+        let mut tracer =
+            Self { gpu: gpu.clone(), pipeline, group, frame, sum, sum_sq, rays, uniform, width, height, samples: 0 };
+        tracer.set_camera(camera);
+        Ok(tracer)
+    }
+
+    /// Moves the camera (made for the tracer's size); the frames after see the new view. The
+    /// accumulated samples stay: [`GpuTracer::clear`] them.
+    pub fn set_camera(&mut self, camera: &Camera) {
+        let basis = camera.basis();
+        self.uniform.origin = lanes(basis.origin);
+        self.uniform.forward = lanes(basis.forward);
+        self.uniform.horizontal = lanes(basis.horizontal);
+        self.uniform.vertical = lanes(basis.vertical);
     }
 
     /// Submits frames `frames` of `scene` (the one the tracer was made for, or that scene
@@ -177,6 +189,17 @@ impl<'a> GpuTracer<'a> {
         self.gpu.queue.submit([encoder.finish()]);
         self.samples = 0;
         Ok(())
+    }
+
+    /// The mean of what has accumulated, read back (waits for the submitted frames): after one
+    /// frame, its samples.
+    pub fn mean(&self) -> Result<Vec<Vec3>, GpuError> {
+        let n = self.samples.max(1) as f32;
+        let bytes = self.gpu.read(&self.sum, u64::from(self.width) * u64::from(self.height) * 16)?;
+        Ok(bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes)
+            .into_iter()
+            .map(|[r, g, b, _]| Vec3::new(r, g, b) / n)
+            .collect())
     }
 
     fn read_sums(&self, buffer: &wgpu::Buffer) -> Result<Vec<[f64; 3]>, GpuError> {

@@ -8,15 +8,17 @@
 use glam::Vec3;
 use phr_bvh::{Builder, Ray};
 use phr_gpu::scene::Packed;
-use phr_gpu::{Gpu, GpuError, GpuScene, GpuTracer, HitQueries};
+use phr_gpu::{Gpu, GpuError, GpuFrames, GpuScene, GpuTracer, HitQueries};
 use phr_render::camera::Camera;
 use phr_render::geometry::Geometry;
 use phr_render::lights::LightSet;
 use phr_render::output::write_image;
+use phr_render::pipeline::{FramePipeline, PipelineKind, PipelineSettings, ViewMode};
 use phr_render::render::Renderer;
 use phr_render::sampler::Pcg32;
+use phr_render::scene::json::parse_scene;
 use phr_render::scene::{load_scene, Scene};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 #[path = "../../phr-render/tests/support/compare_images.rs"]
@@ -231,20 +233,10 @@ fn frames_equal_the_cpu_pixel_by_pixel() {
                 tracer.render(&uploaded, frame..frame + 1);
                 let gpu_pixels = tracer.film().unwrap().mean();
                 let cpu_pixels = cpu.render_frame(frame).0;
-                // Black samples (paths that never reached a light) agree whatever the random
-                // numbers: count the others.
-                let lit: Vec<(Vec3, Vec3)> = cpu_pixels
-                    .iter()
-                    .zip(&gpu_pixels)
-                    .filter(|(c, g)| c.max_element() > 0.0 || g.max_element() > 0.0)
-                    .map(|(c, g)| (*c, *g))
-                    .collect();
-                let close = |c: Vec3, g: Vec3| (c - g).abs().max_element() <= 1e-3 * (1.0 + c.abs().max_element());
-                let alike = lit.iter().filter(|(c, g)| close(*c, *g)).count();
-                let share = alike as f64 / lit.len() as f64;
+                let (share, lit) = alike_share(&cpu_pixels, &gpu_pixels);
                 let what = format!("{name}, light sampling {sampled}, frame {frame}");
-                println!("{what}: {:.2} % of {} lit pixels alike", 100.0 * share, lit.len());
-                assert!(lit.len() > 100, "{what}: too few lit pixels ({})", lit.len());
+                println!("{what}: {:.2} % of {lit} lit pixels alike", 100.0 * share);
+                assert!(lit > 100, "{what}: too few lit pixels ({lit})");
                 assert!(share >= 0.98, "{what}: only {:.2} % of the lit pixels alike", 100.0 * share);
             }
         }
@@ -328,5 +320,68 @@ fn an_updated_scene_is_the_moved_one() {
             })
             .count();
         assert_eq!(mismatches, 0, "update {step} ({builder}): {mismatches} rays disagree");
+    }
+}
+
+/// The share of the pixels lit on either side whose samples agree to 1e-3 (relative), and how
+/// many are lit. Black samples (paths that never reached a light) agree whatever the random
+/// numbers, so they are left out.
+fn alike_share(cpu: &[Vec3], gpu: &[Vec3]) -> (f64, usize) {
+    let lit: Vec<(Vec3, Vec3)> = cpu
+        .iter()
+        .zip(gpu)
+        .filter(|(c, g)| c.max_element() > 0.0 || g.max_element() > 0.0)
+        .map(|(c, g)| (*c, *g))
+        .collect();
+    let close = |c: Vec3, g: Vec3| (c - g).abs().max_element() <= 1e-3 * (1.0 + c.abs().max_element());
+    let alike = lit.iter().filter(|(c, g)| close(*c, *g)).count();
+    (alike as f64 / lit.len().max(1) as f64, lit.len())
+}
+
+/// The viewer's pipeline with the GPU tracing its frames ([`GpuFrames`]) shows the CPU's
+/// frames: while the scene moves (the moved tree and lights uploaded), while it is still
+/// (accumulating), after the camera moved and after light sampling was switched.
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn the_viewers_frames_on_the_gpu_are_the_cpus() {
+    let scene_text = include_str!("../../phr-render/tests/support/moving_light.json");
+    let make = || {
+        let scene = parse_scene(scene_text, Path::new("moving_light.json")).unwrap();
+        let camera = scene.view(None).unwrap();
+        let settings = PipelineSettings {
+            builder: Builder::PHR_FAST,
+            pipeline: PipelineKind::Thesis,
+            width: 64,
+            height: 48,
+            max_depth: 4,
+            mode: ViewMode::Colour,
+            explicit_lights: false,
+            denoise: None,
+        };
+        FramePipeline::new(scene, settings, camera)
+    };
+    let mut on_gpu = make().with_tracer(Box::new(GpuFrames::new(gpu().clone())));
+    let mut on_cpu = make();
+    for frame in 0..12 {
+        for p in [&mut on_gpu, &mut on_cpu] {
+            p.playing = !(4..8).contains(&frame);
+            if frame == 6 {
+                let mut camera = p.camera().clone();
+                camera.position += Vec3::new(0.4, 0.1, 0.0);
+                p.set_camera(camera);
+            }
+            if frame == 8 {
+                let mut settings = p.settings().clone();
+                settings.explicit_lights = true;
+                p.set_settings(settings);
+            }
+        }
+        let (g, c) = (on_gpu.step(0.1), on_cpu.step(0.1));
+        assert_eq!(g.device, "gpu", "frame {frame}");
+        assert_eq!((g.moved, g.samples), (c.moved, c.samples), "frame {frame}");
+        let (share, lit) = alike_share(&on_cpu.raw_image(), &on_gpu.raw_image());
+        println!("viewer frame {frame}: {:.2} % of {lit} lit pixels alike", 100.0 * share);
+        assert!(lit > 300, "frame {frame}: too few lit pixels ({lit})");
+        assert!(share >= 0.98, "frame {frame}: only {:.2} % of the lit pixels alike", 100.0 * share);
     }
 }

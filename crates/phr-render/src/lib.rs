@@ -13,6 +13,7 @@ pub mod denoise;
 pub mod environment;
 pub mod error;
 pub mod film;
+pub mod frame_tracer;
 pub mod geometry;
 pub mod integrator;
 pub mod lights;

@@ -16,6 +16,9 @@
 //!   a worker thread ([`crate::rebuild`]): moving frames refit the tree they trace and pack
 //!   its triangles, and take a new tree when the worker has one.
 //!
+//! A [`FrameTracer`] set with [`FramePipeline::with_tracer`] (the GPU) traces the colour
+//! frames of the thesis's pipeline; everything else stays on the CPU.
+//!
 //! [`FramePipeline::step`] does one frame and reports the time of each stage, which is what
 //! the viewer's statistics panel and the headless CSV show.
 
@@ -24,6 +27,7 @@ use crate::camera::Camera;
 use crate::camera::CameraDesc;
 use crate::denoise::{Filter, Guide, Temporal};
 use crate::film::Film;
+use crate::frame_tracer::{FrameJob, FrameTracer, TracedFrame};
 use crate::geometry::Geometry;
 use crate::integrator::FirstHit;
 use crate::lights::LightSet;
@@ -141,7 +145,11 @@ pub struct FrameReport {
     /// leaf order ([`Geometry::set_bvh`]); two-level with PHR, which builds the wide tree
     /// directly, the packing alone ([`Geometry::set_part_wide`]).
     pub wide_ms: f64,
+    /// Tracing the frame's samples (on another device: uploading what moved, tracing, reading
+    /// the samples back).
     pub render_ms: f64,
+    /// Of `render_ms`, moving the scene to the device that traced the frame (0 on the CPU).
+    pub upload_ms: f64,
     /// Denoising: this frame through the temporal filter (and tracing its guide), or the
     /// accumulated image (and its guide, after a restart) on the frames that do.
     pub denoise_ms: f64,
@@ -161,18 +169,21 @@ pub struct FrameReport {
     /// frame; with [`PipelineKind::Async`], the frames a rebuild took to land, and more while
     /// the landed tree is refitted.
     pub tree_age: u64,
+    /// What traced the frame's samples: `cpu`, or the [`FrameTracer::name`] of the
+    /// pipeline's tracer.
+    pub device: &'static str,
 }
 
 impl FrameReport {
     /// The columns of [`FrameReport::csv_row`]: what `phr view --headless` and `phr animate`
     /// write per frame.
     pub const CSV_HEADER: &'static str =
-        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,tree_age,denoise_ms";
+        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,tree_age,denoise_ms,upload_ms,device";
 
     /// This frame as a CSV row of [`FrameReport::CSV_HEADER`]'s columns.
     pub fn csv_row(&self) -> String {
         format!(
-            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{},{:.3}",
+            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{},{:.3},{:.3},{}",
             self.frame,
             self.time,
             self.moved as u8,
@@ -188,7 +199,9 @@ impl FrameReport {
             self.build_cost,
             self.samples,
             self.tree_age,
-            self.denoise_ms
+            self.denoise_ms,
+            self.upload_ms,
+            self.device
         )
     }
 
@@ -219,6 +232,10 @@ pub struct FramePipeline {
     landed_sah: f64,
     /// The scene's emitters, when explicit light sampling is on.
     lights: Option<LightSet>,
+    /// Another device tracing the colour frames of [`PipelineKind::Thesis`].
+    tracer: Option<Box<dyn FrameTracer>>,
+    /// [`FrameJob::version`]: counts the changes of the geometry, its tree and the lights.
+    version: u64,
     settings: PipelineSettings,
     camera: CameraDesc,
     film: Film,
@@ -271,6 +288,8 @@ impl FramePipeline {
             tree_age: 0,
             landed_sah: 0.0,
             lights: None,
+            tracer: None,
+            version: 0,
             settings,
             camera,
             film,
@@ -290,6 +309,18 @@ impl FramePipeline {
             speed: 1.0,
             rebuild_sah_growth: REBUILD_SAH_GROWTH,
         }
+    }
+
+    /// The same pipeline with `tracer` tracing the colour frames of [`PipelineKind::Thesis`]
+    /// (the other modes and pipelines stay on the CPU). A tracer that fails is dropped, with
+    /// a warning, and the CPU traces on.
+    pub fn with_tracer(self, tracer: Box<dyn FrameTracer>) -> Self {
+        Self { tracer: Some(tracer), ..self }
+    }
+
+    /// The device of the pipeline's tracer, `None` without one (or after it failed).
+    pub fn tracer(&self) -> Option<String> {
+        self.tracer.as_ref().map(|t| format!("{} ({})", t.name(), t.describe()))
     }
 
     pub fn scene(&self) -> &Scene {
@@ -383,18 +414,23 @@ impl FramePipeline {
             if let Some(lights) = &mut self.lights {
                 lights.refresh(&self.geometry, &self.scene.materials);
             }
+            self.version += 1;
             self.restart();
         }
         if self.settings.explicit_lights && self.lights.is_none() {
             self.lights = Some(LightSet::new(&self.geometry, &self.scene.materials, &self.scene.background));
+            self.version += 1;
         }
         // This frame's samples go through the temporal filter, guided by their own first hits.
         let temporal = self.settings.denoise.is_some()
             && self.settings.mode == ViewMode::Colour
             && self.samples + 1 < ACCUMULATED_DENOISE_FROM;
         let render_start = Instant::now();
-        let (pixels, first_hits, rays) = self.render(temporal);
+        let (traced, first_hits, device) = self.render(temporal);
         report.render_ms = ms_since(render_start);
+        report.upload_ms = traced.upload_ms;
+        report.device = device;
+        let (pixels, rays) = (traced.pixels, traced.rays);
         self.film.add_frame(&pixels);
         self.samples += 1;
         let s = self.samples;
@@ -595,9 +631,9 @@ impl FramePipeline {
         Parts { deforming, rigid }
     }
 
-    /// One sample per pixel in the current view mode; returns the pixels, their first hits
-    /// if `guided` (which the caller asks for in colour mode only), and the rays traced.
-    fn render(&self, guided: bool) -> (Vec<Vec3>, Option<Vec<FirstHit>>, u64) {
+    /// One sample per pixel in the current view mode; returns the frame, its first hits if
+    /// `guided` (which the caller asks for in colour mode only) and the device that traced it.
+    fn render(&mut self, guided: bool) -> (TracedFrame, Option<Vec<FirstHit>>, &'static str) {
         let s = &self.settings;
         let size = RenderSettings { width: s.width, height: s.height, spp: 1, max_depth: s.max_depth.max(1) };
         let lights = self.lights.as_ref().filter(|_| s.explicit_lights);
@@ -606,9 +642,33 @@ impl FramePipeline {
         // while animating, it keeps the noise from freezing in place.
         let frame = self.frame as u32;
         let geometry = &self.geometry;
+        if let Some(tracer) =
+            self.tracer.as_mut().filter(|_| s.mode == ViewMode::Colour && s.pipeline == PipelineKind::Thesis)
+        {
+            let job = FrameJob {
+                scene: &self.scene,
+                geometry,
+                lights,
+                camera: &self.camera,
+                width: s.width,
+                height: s.height,
+                max_depth: size.max_depth,
+                seed: self.seed,
+                frame,
+                version: self.version,
+            };
+            match tracer.trace(&job) {
+                // The guide's first hits come from the same camera rays, traced here.
+                Ok(traced) => return (traced, guided.then(|| renderer.first_hits(frame)), tracer.name()),
+                Err(why) => {
+                    eprintln!("warning: {} failed ({why}); the CPU traces from frame {frame} on", tracer.name());
+                    self.tracer = None;
+                }
+            }
+        }
         if guided {
             let (pixels, first_hits, stats) = renderer.render_frame_guided(frame);
-            return (pixels, Some(first_hits), stats.rays);
+            return (TracedFrame { pixels, rays: stats.rays, upload_ms: 0.0 }, Some(first_hits), "cpu");
         }
         let (pixels, stats) = match s.mode {
             ViewMode::Colour => renderer.render_frame(frame),
@@ -636,7 +696,7 @@ impl FramePipeline {
                 (Vec3::new(linear(r), linear(g), linear(b)), 1)
             }),
         };
-        (pixels, None, stats.rays)
+        (TracedFrame { pixels, rays: stats.rays, upload_ms: 0.0 }, None, "cpu")
     }
 
     /// The first hits of the current view, `samples` jittered ones per pixel.

@@ -145,6 +145,23 @@ impl Renderer<'_> {
         (colours, hits, stats)
     }
 
+    /// The first hits [`Renderer::render_frame_guided`] gives frame `frame`, from the same
+    /// camera rays, without the paths: the guide of samples another device traced
+    /// ([`crate::frame_tracer`]).
+    pub fn first_hits(&self, frame: u32) -> Vec<FirstHit> {
+        let geometry = self.tracer.geometry;
+        let (hits, _) = self.render_frame_with(frame, |ray, _| {
+            if !self.tracer.traces_anything() {
+                return (FirstHit::SKY, 0);
+            }
+            let first = geometry
+                .intersect(&ray)
+                .map_or(FirstHit::SKY, |hit| self.tracer.first_hit(&geometry.surface_point(&ray, &hit), &hit));
+            (first, 1)
+        });
+        hits
+    }
+
     /// The paths of one tile (corner `x0, y0`) as a wavefront: every live path's next ray is
     /// intersected in one batch, then each path advances one segment, until none is left.
     /// Pixels in the tile's row-major order, with the rays traced. `GUIDE`: each pixel's first

@@ -8,6 +8,7 @@
 use glam::Vec3;
 use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
 use phr_bvh::{validate, Builder, Ray};
+use phr_render::frame_tracer::{FrameJob, FrameTracer, TracedFrame};
 use phr_render::lights::LightSet;
 use phr_render::pipeline::{FramePipeline, PipelineKind, PipelineSettings, ViewMode, ACCUMULATED_DENOISE_FROM};
 use phr_render::render::Renderer;
@@ -18,24 +19,7 @@ use std::path::Path;
 /// A floor, a sphere, and a quad light that moves sideways over them; the floor waves, and so
 /// does the light, so that its two triangles' areas (and light sampling's choice between
 /// them) change with time.
-const SCENE: &str = r#"{
-  "background": [0.05, 0.05, 0.05],
-  "camera": { "position": [0, 2, 5], "look_at": [0, 0.5, 0], "vfov": 50 },
-  "materials": {
-    "white": { "type": "lambertian", "albedo": 0.7 },
-    "lamp": { "type": "emissive", "emit": [8, 8, 8], "two_sided": true }
-  },
-  "objects": [
-    { "type": "triangles", "material": "white",
-      "vertices": [[-3, 0, -3], [0, 0, -3], [3, 0, -3], [-3, 0, 0], [0, 0, 0], [3, 0, 0], [-3, 0, 3], [0, 0, 3], [3, 0, 3]],
-      "faces": [[0, 3, 1], [1, 3, 4], [1, 4, 2], [2, 4, 5], [3, 6, 4], [4, 6, 7], [4, 7, 5], [5, 7, 8]],
-      "animate": { "type": "wave", "amplitude": 0.1, "wavelength": 2.0, "period": 1.5, "direction": [1, 0, 0] } },
-    { "type": "sphere", "center": [0, 0.6, 0], "radius": 0.6, "material": "white" },
-    { "type": "quad", "Q": [-0.5, 2.5, -0.5], "u": [1, 0, 0], "v": [0, 0, 1], "material": "lamp",
-      "animate": [ { "type": "wave", "amplitude": 0.4, "wavelength": 3, "period": 2, "direction": [1, 0, 1] },
-                   { "type": "oscillate", "amplitude": [1.5, 0, 0], "period": 2 } ] }
-  ]
-}"#;
+const SCENE: &str = include_str!("support/moving_light.json");
 
 const SIZE: u32 = 32;
 
@@ -275,4 +259,106 @@ fn a_moving_view_is_denoised_towards_the_reference() {
     println!("moving view, last frame: RMSE {denoised} denoised, {raw} raw, {spatial} without history");
     assert!(denoised < 0.2 * raw, "RMSE {denoised} denoised against {raw} raw");
     assert!(denoised < 0.8 * spatial, "RMSE {denoised} denoised against {spatial} without history");
+}
+
+/// A [`FrameTracer`] that traces on the CPU from the job alone (a renderer made afresh from
+/// what the job gives), recording the versions it saw; `fail_at`: fails that frame.
+struct JobTracer {
+    versions: std::sync::Arc<std::sync::Mutex<Vec<u64>>>,
+    fail_at: Option<u32>,
+}
+
+impl FrameTracer for JobTracer {
+    fn name(&self) -> &'static str {
+        "job"
+    }
+
+    fn describe(&self) -> String {
+        "the CPU, from the job".into()
+    }
+
+    fn trace(&mut self, job: &FrameJob) -> Result<TracedFrame, String> {
+        if self.fail_at == Some(job.frame) {
+            return Err("lost".into());
+        }
+        self.versions.lock().unwrap().push(job.version);
+        let size = RenderSettings { width: job.width, height: job.height, spp: 1, max_depth: job.max_depth };
+        let renderer = Renderer::new(job.scene, job.geometry, job.camera, &size, job.lights).with_seed(job.seed);
+        let (pixels, stats) = renderer.render_frame(job.frame);
+        Ok(TracedFrame { pixels, rays: stats.rays, upload_ms: 0.0 })
+    }
+}
+
+/// A pipeline whose frames another device traces shows what the CPU shows, moving or still,
+/// with either estimator and after a camera move: the job holds the posed geometry, its
+/// lights, the view and the frame's number, and its version changes exactly when the scene
+/// moved (or light sampling came on); denoised images agree too. Other modes stay on the CPU.
+#[test]
+fn a_frame_tracer_traces_the_frames_the_cpu_would() {
+    for explicit_lights in [false, true] {
+        let versions = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let tracer = JobTracer { versions: versions.clone(), fail_at: None };
+        let mut on_device = pipeline(Builder::PHR_FAST, explicit_lights).with_tracer(Box::new(tracer));
+        let mut on_cpu = pipeline(Builder::PHR_FAST, explicit_lights);
+        let mut moved = Vec::new();
+        for frame in 0..8 {
+            for p in [&mut on_device, &mut on_cpu] {
+                p.playing = frame < 3;
+                if frame == 5 {
+                    let mut camera = p.camera().clone();
+                    camera.position += Vec3::new(0.3, 0.0, 0.0);
+                    p.set_camera(camera);
+                }
+            }
+            let (a, b) = (on_device.step(0.1), on_cpu.step(0.1));
+            assert_eq!((a.device, b.device), ("job", "cpu"));
+            assert_eq!(
+                bits(&on_device.raw_image()),
+                bits(&on_cpu.raw_image()),
+                "frame {frame} (lights {explicit_lights})"
+            );
+            moved.push(a.moved);
+        }
+        let versions = versions.lock().unwrap().clone();
+        for k in 1..versions.len() {
+            assert_eq!(versions[k] != versions[k - 1], moved[k], "frame {k}: versions {versions:?}");
+        }
+        // Denoised, moving (the temporal filter, guided by first hits the CPU traces from the
+        // device's camera rays) and still (the accumulated image's filter).
+        for p in [&mut on_device, &mut on_cpu] {
+            let mut settings = p.settings().clone();
+            settings.denoise = Some(phr_render::denoise::Filter::Atrous);
+            p.set_settings(settings);
+        }
+        for frame in 0..ACCUMULATED_DENOISE_FROM + 2 {
+            for p in [&mut on_device, &mut on_cpu] {
+                p.playing = frame < 3;
+            }
+            on_device.step(0.1);
+            on_cpu.step(0.1);
+            assert_eq!(
+                bits(&on_device.image()),
+                bits(&on_cpu.image()),
+                "denoised frame {frame} (lights {explicit_lights})"
+            );
+        }
+        let mut settings = on_device.settings().clone();
+        settings.mode = ViewMode::Normals;
+        on_device.set_settings(settings);
+        assert_eq!(on_device.step(0.1).device, "cpu", "the normals are the CPU's");
+    }
+}
+
+/// A tracer that fails is dropped, with a warning, and the CPU traces the frame instead.
+#[test]
+fn a_failing_frame_tracer_leaves_the_cpu_tracing() {
+    let tracer = JobTracer { versions: Default::default(), fail_at: Some(2) };
+    let mut on_device = pipeline(Builder::PHR_FAST, true).with_tracer(Box::new(tracer));
+    let mut on_cpu = pipeline(Builder::PHR_FAST, true);
+    for frame in 0..4 {
+        let (a, _) = (on_device.step(0.1), on_cpu.step(0.1));
+        assert_eq!(a.device, if frame < 2 { "job" } else { "cpu" });
+        assert_eq!(bits(&on_device.raw_image()), bits(&on_cpu.raw_image()), "frame {frame}");
+    }
+    assert!(on_device.tracer().is_none());
 }

@@ -22,10 +22,7 @@ mod imp {
     use super::*;
 
     pub fn run(_: &AnimateArgs, _: Scene, _: &CameraDesc) -> Result<()> {
-        bail!(
-            "this phr was built without the GPU tracer: build it with `cargo build --release --features gpu` \
-             (or run `cargo run --release --features gpu -- animate ... --device gpu`)"
-        )
+        Err(crate::render::without_gpu("animate"))
     }
 }
 

@@ -99,6 +99,15 @@ pub enum Device {
     Gpu,
 }
 
+/// The error of `phr COMMAND --device gpu` in a `phr` built without the cargo feature `gpu`.
+#[cfg(not(feature = "gpu"))]
+pub fn without_gpu(command: &str) -> anyhow::Error {
+    anyhow::anyhow!(
+        "this phr was built without the GPU tracer: build it with `cargo build --release --features gpu` \
+         (or run `cargo run --release --features gpu -- {command} ... --device gpu`)"
+    )
+}
+
 /// The denoisers of `phr render --denoiser`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Denoiser {

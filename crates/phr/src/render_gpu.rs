@@ -25,10 +25,7 @@ mod imp {
     use super::*;
 
     pub fn run(_: &RenderArgs, _: Scene, _: &CameraDesc, _: &RenderSettings) -> Result<()> {
-        bail!(
-            "this phr was built without the GPU tracer: build it with `cargo build --release --features gpu` \
-             (or run `cargo run --release --features gpu -- render ... --device gpu`)"
-        )
+        Err(crate::render::without_gpu("render"))
     }
 }
 

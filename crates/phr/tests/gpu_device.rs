@@ -35,6 +35,11 @@ fn without_the_feature_the_gpu_is_an_error_that_says_how_to_get_it() {
     assert_ne!(out.code, Some(0));
     assert!(out.stderr.contains("--features gpu"), "{}", out.stderr);
     assert!(!dir.join("anim/frames.csv").exists(), "no output");
+    let args = ["view", "--headless", "--device", "gpu", "--frames", "2", "--out", "view"];
+    let out = phr_within(&dir.0, &args, Duration::from_secs(60));
+    assert_ne!(out.code, Some(0));
+    assert!(out.stderr.contains("--features gpu"), "{}", out.stderr);
+    assert!(!dir.join("view/frames.csv").exists(), "no output");
 }
 
 #[test]
@@ -44,6 +49,45 @@ fn the_gpu_animates_with_the_thesis_s_pipeline_only() {
     let out = phr_within(&dir.0, &args, Duration::from_secs(60));
     assert_ne!(out.code, Some(0));
     assert!(out.stderr.contains("--pipeline thesis"), "{}", out.stderr);
+    let args = ["view", "--headless", "--device", "gpu", "--pipeline", "two-level", "--frames", "2", "--out", "view"];
+    let out = phr_within(&dir.0, &args, Duration::from_secs(60));
+    assert_ne!(out.code, Some(0));
+    assert!(out.stderr.contains("--pipeline thesis"), "{}", out.stderr);
+    assert!(!dir.join("view/frames.csv").exists(), "no output");
+}
+
+/// `phr view --device gpu`, headless: the moving bunny of a scene file, with the viewer's
+/// light sampling and denoiser, its colour frames traced on the GPU (the CSV's `device`), the
+/// scene's moved parts uploaded when it moves and not when it is paused, the frames as PNGs.
+#[cfg(feature = "gpu")]
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn the_viewer_traces_its_frames_on_the_gpu() {
+    use common::Table;
+    let dir = TempDir::new("gpu-view");
+    let scene = common::repo_path("scenes/dynamic/bunny_in_sponza.json");
+    for (out, paused) in [("moving", false), ("paused", true)] {
+        let mut args = vec!["--threads", "2", "view", scene.to_str().unwrap(), "--headless", "--device", "gpu"];
+        args.extend(["--frames", "3", "--width", "48", "--height", "32", "--out", out]);
+        if paused {
+            args.push("--paused");
+        }
+        let out_dir = dir.join(out);
+        let out = phr_within(&dir.0, &args, Duration::from_secs(300));
+        assert_eq!(out.code, Some(0), "{}", out.stderr);
+        assert!(out.stdout.contains("colour frames traced on the gpu"), "{}", out.stdout);
+        let csv = Table::read(&out_dir.join("frames.csv"));
+        assert_eq!(csv.rows.len(), 3);
+        for row in 0..3 {
+            assert_eq!(csv.str(row, "device"), "gpu");
+            assert!(csv.num(row, "rays") >= 48.0 * 32.0, "row {row}: {} rays", csv.num(row, "rays"));
+            assert!(csv.num(row, "render_ms") >= csv.num(row, "upload_ms"));
+            assert!(out_dir.join(format!("frame{row:05}.png")).is_file());
+        }
+        // The scene goes up once; then again each frame it moves.
+        let uploads = (1..3).filter(|&row| csv.num(row, "upload_ms") > 0.0).count();
+        assert_eq!(uploads, if paused { 0 } else { 2 }, "{out_dir:?}");
+    }
 }
 
 /// A wave through the bunny, four frames on the GPU: every frame rebuilt, uploaded and traced,

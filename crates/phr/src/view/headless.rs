@@ -26,8 +26,9 @@ pub fn run(args: &ViewArgs, mut pipeline: FramePipeline) -> Result<()> {
     Ok(())
 }
 
-/// What the summary needs of each frame: pose, refit, build, wide, render, frame ms, Mrays/s.
-type Times = [f32; 7];
+/// What the summary needs of each frame: pose, refit, build, wide, render, frame ms, Mrays/s,
+/// upload ms.
+type Times = [f32; 8];
 
 struct Summary {
     times: Vec<Times>,
@@ -59,7 +60,8 @@ fn frames(args: &ViewArgs, pipeline: &mut FramePipeline, csv: &mut impl Write) -
         let peak = hwm.max(rss).max(summary.peak_rss_at_end);
         writeln!(csv, "{},{rss:.1},{peak:.1}", r.csv_row())?;
         summary.times.push(
-            [r.pose_ms, r.refit_ms, r.build_ms, r.wide_ms, r.render_ms, r.frame_ms, r.mrays_per_s()].map(|x| x as f32),
+            [r.pose_ms, r.refit_ms, r.build_ms, r.wide_ms, r.render_ms, r.frame_ms, r.mrays_per_s(), r.upload_ms]
+                .map(|x| x as f32),
         );
         if frame < 100 {
             summary.peak_rss_at_100 = peak;
@@ -98,6 +100,12 @@ fn print_summary(args: &ViewArgs, pipeline: &FramePipeline, summary: &Summary) {
         1e3 / frame_ms.max(1e-9),
         median(6),
     );
+    match pipeline.tracer() {
+        Some(device) => {
+            println!("colour frames traced on the {device}; median upload {:.2} ms (in the render time)", median(7))
+        }
+        None => println!("traced on the CPU"),
+    }
     println!(
         "peak RSS: {:.1} MiB after {} frames, {:.1} MiB after {}",
         summary.peak_rss_at_100,

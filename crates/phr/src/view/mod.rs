@@ -3,10 +3,11 @@
 //! scripted headless run measures what the window shows.
 
 mod camera_control;
+mod device;
 mod headless;
 mod window;
 
-use crate::render::Denoiser;
+use crate::render::{Denoiser, Device};
 use crate::scene_arg::{open_scene, BUILTIN};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
@@ -51,8 +52,9 @@ pub struct ViewArgs {
     /// deforming objects' tree; `async` does so too, but rebuilds the deforming objects'
     /// tree with PHR on a worker thread while frames trace it refitted; `thesis` refits and
     /// rebuilds one tree over the whole scene every moving frame (thesis section 5.3).
-    #[arg(long, value_enum, default_value = "async")]
-    pipeline: PipelineArg,
+    /// Default: `async` on the CPU, `thesis` on the GPU (the one it traces).
+    #[arg(long, value_enum)]
+    pipeline: Option<PipelineArg>,
     /// Maximum path length (default: the scene's, at most 8).
     #[arg(long)]
     max_depth: Option<u32>,
@@ -77,6 +79,11 @@ pub struct ViewArgs {
     /// accumulated image (builds with the cargo feature `oidn`); `none`: the raw mean.
     #[arg(long, value_enum, default_value = "atrous")]
     denoiser: Denoiser,
+    /// `gpu` (a `phr` built with `--features gpu`): the GPU traces the colour frames, with the
+    /// thesis's pipeline (one binary tree over the scene; instances are flattened); the CPU
+    /// poses, builds the trees, accumulates and denoises, and traces the other modes.
+    #[arg(long, value_enum, default_value = "cpu")]
+    device: Device,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -154,7 +161,19 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
     if args.denoiser == Denoiser::Oidn && !phr_render::denoise::oidn::AVAILABLE {
         anyhow::bail!("--denoiser oidn: {}", phr_render::denoise::oidn::MISSING);
     }
-    let scene = open_scene(&args.scene)?;
+    let on_gpu = args.device == Device::Gpu;
+    let pipeline_kind = args.pipeline.unwrap_or(if on_gpu { PipelineArg::Thesis } else { PipelineArg::Async });
+    if on_gpu && pipeline_kind != PipelineArg::Thesis {
+        anyhow::bail!("--device gpu traces the thesis's pipeline (one tree over the scene): use --pipeline thesis");
+    }
+    if on_gpu && args.branching != 2 {
+        anyhow::bail!("--device gpu traces binary trees: leave --branching at 2");
+    }
+    let mut scene = open_scene(&args.scene)?;
+    if on_gpu {
+        // The GPU traces one tree over every triangle where it is.
+        scene.flatten_instanced();
+    }
     let camera = scene
         .view(args.view.as_deref())
         .with_context(|| format!("no view {:?} (the scene has: {})", args.view, scene.view_names().join(", ")))?;
@@ -164,7 +183,7 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
     size.check().map_err(anyhow::Error::msg)?;
     let settings = PipelineSettings {
         builder,
-        pipeline: args.pipeline.into(),
+        pipeline: pipeline_kind.into(),
         width: args.width,
         height: args.height,
         max_depth,
@@ -173,6 +192,9 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
         denoise: args.denoiser.filter(),
     };
     let mut pipeline = FramePipeline::new(scene, settings, camera);
+    if on_gpu {
+        pipeline = device::attach_gpu(pipeline)?;
+    }
     pipeline.playing = !args.paused;
     Ok(pipeline)
 }

@@ -542,7 +542,10 @@ impl ViewerApp {
             row("refit", format!("{:.2} ms", report.refit_ms));
             row("PHR / build", format!("{:.2} ms", report.build_ms));
             row("wide tree + packing", format!("{:.2} ms", report.wide_ms));
-            row("render", format!("{:.2} ms", report.render_ms));
+            row("render", format!("{:.2} ms on the {}", report.render_ms, report.device));
+            if report.device != "cpu" {
+                row("of which upload", format!("{:.2} ms", report.upload_ms));
+            }
             row("frame", format!("{:.2} ms", report.frame_ms));
             row("fps", format!("{:.1}", 1e3 / report.frame_ms.max(1e-3)));
             row("Mrays/s", format!("{:.2}", report.mrays_per_s()));
