@@ -29,9 +29,12 @@ impl Drop for Kill {
     }
 }
 
-/// A display number with neither a lock file nor a socket (stale ones included).
+/// A display number with neither a lock file nor a socket (stale ones included), another for
+/// each test of this process (they run in parallel).
 fn free_display() -> u32 {
-    (90 + std::process::id() % 100..600)
+    static TAKEN: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let offset = 7 * TAKEN.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    (90 + std::process::id() % 100 + offset..600)
         .find(|n| {
             !Path::new(&format!("/tmp/.X{n}-lock")).exists() && !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
         })
@@ -86,6 +89,21 @@ fn std_dev(a: &[f32]) -> f32 {
 #[test]
 #[ignore = "needs Xvfb and xdotool: run with --ignored (.ci/run does)"]
 fn viewer_renders_and_follows_input_under_xvfb() {
+    viewer_under_xvfb(&[]);
+}
+
+/// The same with the GPU tracing the frames (`--device gpu`; in CI, lavapipe:
+/// `cargo test --release -p phr --features gpu --test viewer_xvfb -- --ignored gpu`).
+#[cfg(feature = "gpu")]
+#[test]
+#[ignore = "needs Xvfb, xdotool and a GPU adapter (lavapipe): run with --ignored (.ci/run does)"]
+fn the_gpu_viewer_renders_and_follows_input_under_xvfb() {
+    viewer_under_xvfb(&["--device", "gpu"]);
+}
+
+/// Starts `phr view builtin` with `extra` arguments in a window of a virtual X server,
+/// screenshots it twice while still and once after orbiting and flying.
+fn viewer_under_xvfb(extra: &[&str]) {
     assert!(
         have("Xvfb") && have("xdotool"),
         "Xvfb and xdotool are not installed (apt-get install xvfb xdotool libgl1-mesa-dri; .ci/run does)"
@@ -116,16 +134,22 @@ fn viewer_renders_and_follows_input_under_xvfb() {
                 .is_ok_and(|s| s.success())
     });
 
-    let out: PathBuf = std::env::temp_dir().join(format!("phr-viewer-xvfb-{}", std::process::id()));
+    let name = format!("phr-viewer-xvfb-{}{}", std::process::id(), extra.concat());
+    let out: PathBuf = std::env::temp_dir().join(name);
     let _ = std::fs::remove_dir_all(&out);
+    std::fs::create_dir_all(&out).expect("the output folder");
+    let stderr = out.join("stderr.txt");
     let mut viewer = Kill(
         Command::new(env!("CARGO_BIN_EXE_phr"))
-            .args(["view", "builtin", "--width", "128", "--height", "128", "--out"])
+            .args(["view", "builtin", "--width", "128", "--height", "128"])
+            .args(extra)
+            .arg("--out")
             .arg(&out)
             .env("DISPLAY", &display)
             .env("LIBGL_ALWAYS_SOFTWARE", "1")
             .env_remove("WAYLAND_DISPLAY")
             .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&stderr).expect("the viewer's stderr file"))
             .spawn()
             .expect("start phr view"),
     );
@@ -178,5 +202,10 @@ fn viewer_renders_and_follows_input_under_xvfb() {
     let change = mean_abs_diff(&still_b, &moved);
     assert!(std_dev(&moved) > 10.0, "the image went blank after input");
     assert!(change > 8.0 && change > 3.0 * noise, "input did not change the view: {change} vs noise {noise}");
+    let said = std::fs::read_to_string(&stderr).unwrap_or_default();
+    if extra.contains(&"gpu") {
+        // The GPU traced the frames throughout (a failing device is dropped with a warning).
+        assert!(said.contains("traced on the gpu") && !said.contains("failed"), "{said}");
+    }
     let _ = std::fs::remove_dir_all(&out);
 }

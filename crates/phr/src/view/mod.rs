@@ -131,6 +131,9 @@ impl From<ModeArg> for ViewMode {
 
 pub fn run(args: &ViewArgs) -> Result<()> {
     let pipeline = open(args)?;
+    if let Some(device) = pipeline.tracer() {
+        eprintln!("phr view: colour frames traced on the {device}");
+    }
     if args.headless {
         return headless::run(args, pipeline);
     }
