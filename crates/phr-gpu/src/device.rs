@@ -32,6 +32,9 @@ pub struct Gpu {
     pub info: wgpu::AdapterInfo,
     /// The largest storage buffer one binding may see.
     pub max_binding: u64,
+    /// The first error the device reported outside any call's result (validation, out of
+    /// memory, device lost): [`Gpu::wait`] returns it, instead of wgpu's default of panicking.
+    failure: std::sync::Arc<std::sync::Mutex<Option<String>>>,
 }
 
 impl Gpu {
@@ -72,7 +75,19 @@ impl Gpu {
         }))
         .map_err(|e| GpuError::Device { adapter: info.name.clone(), reason: e.to_string() })?;
         let max_binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-        Ok(Self { device, queue, info, max_binding })
+        let failure = std::sync::Arc::new(std::sync::Mutex::new(None));
+        let record = |failure: &std::sync::Arc<std::sync::Mutex<Option<String>>>| {
+            let failure = failure.clone();
+            move |what: String| {
+                let mut first = failure.lock().unwrap_or_else(|e| e.into_inner());
+                first.get_or_insert(what);
+            }
+        };
+        let on_error = record(&failure);
+        device.on_uncaptured_error(std::sync::Arc::new(move |e: wgpu::Error| on_error(e.to_string())));
+        let on_lost = record(&failure);
+        device.set_device_lost_callback(move |reason, message| on_lost(format!("device lost ({reason:?}): {message}")));
+        Ok(Self { device, queue, info, max_binding, failure })
     }
 
     /// "NAME (BACKEND, TYPE)", for reports.
@@ -143,9 +158,14 @@ impl Gpu {
         Ok(data)
     }
 
-    /// Waits until the GPU has done everything submitted.
+    /// Waits until the GPU has done everything submitted; fails if the device reported an
+    /// error since it was made.
     pub fn wait(&self) -> Result<(), GpuError> {
-        self.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| GpuError::Failed(e.to_string()))
+        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Failed(e.to_string()))?;
+        match self.failure.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
+            Some(what) => Err(GpuError::Failed(what.clone())),
+            None => Ok(()),
+        }
     }
 
     /// A compute pipeline running `entry` of the WGSL `source` with these bind group layouts.

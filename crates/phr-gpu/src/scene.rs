@@ -293,7 +293,6 @@ pub struct GpuScene {
     pub(crate) environment: Option<([u32; 2], [f32; 2])>,
     /// Bytes of the last upload (all of it, or what [`GpuScene::update`] wrote).
     pub bytes: u64,
-    pub prim_count: usize,
 }
 
 const BUFFERS: usize = 10;
@@ -347,7 +346,7 @@ impl GpuScene {
         let bytes = data.iter().map(|d| d.len() as u64).sum();
         let lights = packed.sky_probability.map(|sky| (sky, packed.light_cdf.len() as u32));
         let environment = packed.environment;
-        Ok(Self { layout, group, buffers, background, lights, environment, bytes, prim_count: packed.prims.len() })
+        Ok(Self { layout, group, buffers, background, lights, environment, bytes })
     }
 
     /// Replaces the scene's contents with `packed` (the same scene moved: its tree, primitives
@@ -376,7 +375,6 @@ impl GpuScene {
             self.group = gpu.bind("scene", &self.layout, &self.buffers.each_ref());
         }
         self.bytes = bytes;
-        self.prim_count = packed.prims.len();
         self.lights = packed.sky_probability.map(|sky| (sky, packed.light_cdf.len() as u32));
         Ok(())
     }

@@ -20,8 +20,13 @@ const GROUP: u32 = 8;
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 #[repr(C)]
 struct FrameUniform {
-    size: [u32; 4],
-    seed: [u32; 4],
+    width: u32,
+    height: u32,
+    number: u32,
+    max_depth: u32,
+    seed: [u32; 2],
+    background: u32,
+    light_sampling: u32,
     sky_probability: f32,
     light_count: u32,
     environment: [u32; 2],
@@ -84,8 +89,13 @@ impl GpuTracer {
         let (sky_probability, light_count) = scene.lights.unwrap_or((0.0, 0));
         let (environment, rotation) = scene.environment.unwrap_or_default();
         let uniform = FrameUniform {
-            size: [width, height, 0, max_depth],
-            seed: [seed as u32, (seed >> 32) as u32, kind, u32::from(scene.lights.is_some())],
+            width,
+            height,
+            number: 0,
+            max_depth,
+            seed: [seed as u32, (seed >> 32) as u32],
+            background: kind,
+            light_sampling: u32::from(scene.lights.is_some()),
             sky_probability,
             light_count,
             environment,
@@ -139,7 +149,7 @@ impl GpuTracer {
             (self.uniform.sky_probability, self.uniform.light_count) = (sky, emitters);
         }
         for k in frames {
-            self.uniform.size[2] = k;
+            self.uniform.number = k;
             // Takes effect before the next submission: each frame sees its own number.
             self.gpu.queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&self.uniform));
             let mut encoder = self.gpu.device.create_command_encoder(&Default::default());

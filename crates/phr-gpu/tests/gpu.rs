@@ -385,3 +385,22 @@ fn the_viewers_frames_on_the_gpu_are_the_cpus() {
         assert!(share >= 0.98, "frame {frame}: only {:.2} % of the lit pixels alike", 100.0 * share);
     }
 }
+
+/// An error the device reports on its own (here a buffer wgpu's validation refuses) comes back
+/// from the next wait as an error, not as wgpu's default panic.
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn a_device_error_is_an_error_not_a_panic() {
+    // A device of its own: the error stays with it.
+    let gpu = Gpu::new().unwrap_or_else(|e| panic!("{e}"));
+    gpu.wait().expect("a fresh device has nothing to report");
+    let _invalid = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("mapped both ways"),
+        size: 64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::MAP_WRITE,
+        mapped_at_creation: false,
+    });
+    let error = gpu.wait().expect_err("the invalid buffer is reported");
+    assert!(matches!(error, GpuError::Failed(_)), "{error}");
+    println!("{error}");
+}

@@ -4,12 +4,12 @@
 //! and an equivalent CUDA ray tracer"), on whatever GPU the machine has. Without the cargo
 //! feature `gpu`, or without an adapter, the GPU column says why it is empty.
 
-use anyhow::{bail, Context, Result};
+use crate::bench_frame::FrameSweep;
+use anyhow::{Context, Result};
 use clap::Args;
 use phr_bench::device_report::{markdown, write_device_report, DeviceRow, DeviceRunInfo, GpuRun};
 use phr_bench::frame::time_frames;
-use phr_bench::suite::{load_thesis_scene, scene_name, suite_files, SUITE};
-use phr_bvh::Builder;
+use phr_bench::suite::{load_thesis_scene, scene_name};
 use phr_render::geometry::Geometry;
 use phr_render::render::Tracing;
 use phr_render::scene::RenderSettings;
@@ -17,19 +17,8 @@ use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct BenchDeviceArgs {
-    /// Scene files (default: the suite in scenes/suite).
-    pub scenes: Vec<PathBuf>,
-    #[arg(long, value_delimiter = ',', default_value = "256,512")]
-    pub resolutions: Vec<u32>,
-    /// Timed frames per scene, resolution and device (after the warm-up).
-    #[arg(long, default_value_t = 16)]
-    pub frames: usize,
-    /// Untimed frames first (caches, the GPU's pipeline and clocks).
-    #[arg(long, default_value_t = 2)]
-    pub warmup: usize,
-    /// The builder of the tree both devices trace (binary: the GPU's layout).
-    #[arg(long, default_value = "sbvh")]
-    pub builder: Builder,
+    #[command(flatten)]
+    pub sweep: FrameSweep,
     /// Leave the GPU out.
     #[arg(long)]
     pub no_gpu: bool,
@@ -39,13 +28,11 @@ pub struct BenchDeviceArgs {
 }
 
 pub fn run(args: &BenchDeviceArgs) -> Result<()> {
-    if args.frames == 0 || args.resolutions.is_empty() || args.resolutions.contains(&0) {
-        bail!("need at least one frame and one non-zero resolution");
-    }
-    let files = if args.scenes.is_empty() { suite_files(SUITE)? } else { args.scenes.clone() };
+    let sweep = &args.sweep;
+    let files = sweep.files()?;
     let threads = rayon::current_num_threads();
     let gpu = if args.no_gpu { Err("--no-gpu".to_string()) } else { gpu::open() };
-    let progress = crate::progress::bar((files.len() * args.resolutions.len()) as u64);
+    let progress = crate::progress::bar((files.len() * sweep.resolutions.len()) as u64);
     let mut rows = Vec::new();
     for file in &files {
         let scene = load_thesis_scene(file)?;
@@ -53,25 +40,31 @@ pub fn run(args: &BenchDeviceArgs) -> Result<()> {
         let name = scene_name(file);
         progress.set_message(format!("{name}: build"));
         let mut geometry = Geometry::new(&scene);
-        let report = geometry.build_report(&args.builder);
+        let report = geometry.build_report(&sweep.builder);
         let build = report.total_time();
         let collapse = geometry.set_bvh(report.bvh);
         let build_ms = (build + collapse).as_secs_f64() * 1e3;
-        for &res in &args.resolutions {
+        progress.set_message(format!("{name}: upload"));
+        let uploaded = match &gpu {
+            Ok(gpu) => gpu::upload(gpu, &scene, &geometry)?,
+            Err(why) => Err(why.clone()),
+        };
+        for &res in &sweep.resolutions {
             let settings = RenderSettings { width: res, height: res, spp: 1, max_depth: scene.settings.max_depth };
             settings.check().map_err(anyhow::Error::msg)?;
             progress.set_message(format!("{name} {res}²: CPU"));
-            let cpu = time_frames(&scene, &geometry, &view, &settings, Tracing::default(), args.warmup, args.frames);
+            let cpu = time_frames(&scene, &geometry, &view, &settings, Tracing::default(), sweep.warmup, sweep.frames);
             progress.set_message(format!("{name} {res}²: GPU"));
-            let gpu_run = match &gpu {
-                Ok(gpu) => gpu::time(gpu, &scene, &geometry, &view, &settings, args.warmup, args.frames)?,
-                Err(why) => GpuRun::Skipped(why.clone()),
+            let gpu_run = match (&gpu, &uploaded) {
+                (Ok(gpu), Ok(uploaded)) => gpu::time(gpu, uploaded, &view, &settings, sweep.warmup, sweep.frames)?,
+                (_, Err(why)) => GpuRun::Skipped(why.clone()),
+                (Err(why), _) => GpuRun::Skipped(why.clone()),
             };
             rows.push(DeviceRow {
                 scene: name.clone(),
                 triangles: geometry.triangle_count(),
                 res,
-                builder: args.builder.to_string(),
+                builder: sweep.builder.to_string(),
                 build_ms,
                 cpu,
                 gpu: gpu_run,
@@ -100,6 +93,7 @@ mod gpu {
 
     /// Never made: this build has no GPU tracer.
     pub enum Gpu {}
+    pub enum Uploaded {}
 
     pub fn open() -> Result<Gpu, String> {
         Err("this phr was built without the GPU tracer (build with `--features gpu`)".into())
@@ -109,15 +103,11 @@ mod gpu {
         match *gpu {}
     }
 
-    pub fn time(
-        gpu: &Gpu,
-        _: &Scene,
-        _: &Geometry,
-        _: &CameraDesc,
-        _: &RenderSettings,
-        _: usize,
-        _: usize,
-    ) -> Result<GpuRun> {
+    pub fn upload(gpu: &Gpu, _: &Scene, _: &Geometry) -> Result<Result<Uploaded, String>> {
+        match *gpu {}
+    }
+
+    pub fn time(gpu: &Gpu, _: &Uploaded, _: &CameraDesc, _: &RenderSettings, _: usize, _: usize) -> Result<GpuRun> {
         match *gpu {}
     }
 }
@@ -142,34 +132,45 @@ mod gpu {
         (gpu.describe(), gpu.is_software())
     }
 
-    /// Uploads the scene (three times: the median is reported) and times `frames` frames after
-    /// `warmup`, each submitted and waited for. A scene the GPU cannot trace is a skipped row,
-    /// saying why.
-    pub fn time(
-        gpu: &Gpu,
-        scene: &Scene,
-        geometry: &Geometry,
-        view: &CameraDesc,
-        settings: &RenderSettings,
-        warmup: usize,
-        frames: usize,
-    ) -> Result<GpuRun> {
+    /// A scene on the GPU and the median time of its uploads.
+    pub struct Uploaded {
+        scene: GpuScene,
+        ms: f64,
+    }
+
+    /// Uploads the scene (three times: the median is reported), or says why the GPU cannot
+    /// trace it (a skipped row).
+    pub fn upload(gpu: &Gpu, scene: &Scene, geometry: &Geometry) -> Result<Result<Uploaded, String>> {
         let mut uploads = Vec::new();
         let mut uploaded = None;
         for _ in 0..3 {
             let start = Instant::now();
             let scene = match GpuScene::upload(gpu, scene, geometry, None) {
                 Ok(s) => s,
-                Err(e) => return Ok(GpuRun::Skipped(e.to_string())),
+                Err(e) => return Ok(Err(e.to_string())),
             };
             gpu.wait()?;
             uploads.push(start.elapsed().as_secs_f64() * 1e3);
             uploaded = Some(scene);
         }
-        let uploaded = uploaded.expect("uploaded three times");
+        let scene = uploaded.expect("uploaded three times");
+        Ok(Ok(Uploaded { scene, ms: Stat::of(uploads).median }))
+    }
+
+    /// Times `frames` frames of the uploaded scene after `warmup`, each submitted and waited
+    /// for. A size the GPU cannot trace is a skipped row, saying why.
+    pub fn time(
+        gpu: &Gpu,
+        uploaded: &Uploaded,
+        view: &CameraDesc,
+        settings: &RenderSettings,
+        warmup: usize,
+        frames: usize,
+    ) -> Result<GpuRun> {
+        let Uploaded { scene: uploaded, ms: upload_ms } = uploaded;
         let (w, h) = (settings.width, settings.height);
         let camera = Camera::new(view, w, h);
-        let mut tracer = match GpuTracer::new(gpu, &uploaded, &camera, w, h, settings.max_depth, 0) {
+        let mut tracer = match GpuTracer::new(gpu, uploaded, &camera, w, h, settings.max_depth, 0) {
             Ok(tracer) => tracer,
             Err(e) => return Ok(GpuRun::Skipped(e.to_string())),
         };
@@ -180,7 +181,7 @@ mod gpu {
                 tracer.wait()?;
             }
             let start = Instant::now();
-            tracer.render(&uploaded, k..k + 1);
+            tracer.render(uploaded, k..k + 1);
             tracer.wait()?;
             if k as usize >= warmup {
                 times.push(start.elapsed().as_secs_f64() * 1e3);
@@ -188,6 +189,6 @@ mod gpu {
         }
         let rays = tracer.rays()? as f64 / frames as f64;
         let frame = FrameTiming { ms: Stat::of(times), rays, frames };
-        Ok(GpuRun::Ran { upload_ms: Stat::of(uploads).median, bytes: uploaded.bytes, frame })
+        Ok(GpuRun::Ran { upload_ms: *upload_ms, bytes: uploaded.bytes, frame })
     }
 }

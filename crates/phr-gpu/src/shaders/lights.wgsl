@@ -67,7 +67,7 @@ fn lobe_pdf(m: Material, dir: vec3<f32>, normal: vec3<f32>, front: bool, out: ve
 }
 
 fn pdf_sky(facing: vec3<f32>, dir: vec3<f32>) -> f32 {
-    if frame.seed.z == ENVIRONMENT {
+    if frame.background == ENVIRONMENT {
         // `sample_sky` returns no direction below the surface.
         if dot(facing, dir) > 0.0 {
             return sky_probability() * env_pdf(dir);
@@ -123,7 +123,7 @@ struct LightSample {
 const NO_LIGHT: LightSample = LightSample(vec3<f32>(0.0), vec3<f32>(0.0), false, vec3<f32>(0.0), 0.0);
 
 fn sample_sky(facing: vec3<f32>, rng: ptr<function, Pcg>) -> LightSample {
-    if frame.seed.z == ENVIRONMENT {
+    if frame.background == ENVIRONMENT {
         let u1 = next_f32(rng);
         let u2 = next_f32(rng);
         let sample = env_sample(u1, u2);
@@ -246,7 +246,7 @@ fn trace_with_lights(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
     var lit_pdf = 0.0;
     var segment = 0u;
     loop {
-        if segment >= frame.size.w {
+        if segment >= frame.max_depth {
             break;
         }
         rays++;
@@ -270,7 +270,7 @@ fn trace_with_lights(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
             }
             radiance += throughput * light * weight;
         }
-        if segment + 1u >= frame.size.w {
+        if segment + 1u >= frame.max_depth {
             break;
         }
         let facing = select(-surface.normal, surface.normal, surface.front);

@@ -7,11 +7,18 @@
 // accumulation buffers.
 
 struct Frame {
-    // width, height, frame number, max_depth
-    size: vec4<u32>,
-    // seed (low, high), background kind (0 constant, 1 gradient, 2 environment map), 1 for
-    // light sampling
-    seed: vec4<u32>,
+    width: u32,
+    height: u32,
+    // The frame's number (which sample of each pixel it is).
+    number: u32,
+    // Maximum ray segments per path.
+    max_depth: u32,
+    // The seed's low and high halves.
+    seed: vec2<u32>,
+    // 0 constant, 1 gradient, 2 environment map.
+    background: u32,
+    // 1: light sampling with MIS; 0: the implicit estimator.
+    light_sampling: u32,
     // Light sampling: the sky's probability, the number of emitters to pick from.
     sky_probability: f32,
     light_count: u32,
@@ -72,10 +79,10 @@ fn pixel_jitter(seed: vec2<u32>, n: u32, pixel: u32) -> vec2<f32> {
 }
 
 fn sky(unit_dir: vec3<f32>) -> vec3<f32> {
-    if frame.seed.z == 0u {
+    if frame.background == 0u {
         return frame.sky_a.xyz;
     }
-    if frame.seed.z == ENVIRONMENT {
+    if frame.background == ENVIRONMENT {
         return env_radiance(unit_dir);
     }
     let a = 0.5 * (unit_dir.y + 1.0);
@@ -247,7 +254,7 @@ fn trace_implicit(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
     var radiance = vec3<f32>(0.0);
     var throughput = vec3<f32>(1.0);
     var rays = 0u;
-    for (var segment = 0u; segment < frame.size.w; segment++) {
+    for (var segment = 0u; segment < frame.max_depth; segment++) {
         rays++;
         let hit = closest_hit(ray);
         if hit.slot == NO_HIT {
@@ -269,22 +276,22 @@ fn trace_implicit(camera_ray: Ray, rng: ptr<function, Pcg>) -> PathSample {
 
 @compute @workgroup_size(8, 8)
 fn render(@builtin(global_invocation_id) id: vec3<u32>) {
-    let width = frame.size.x;
-    let height = frame.size.y;
+    let width = frame.width;
+    let height = frame.height;
     if id.x >= width || id.y >= height {
         return;
     }
     let pixel = id.y * width + id.x;
-    let seed = frame.seed.xy;
-    var rng = pcg_for_pixel(seed, frame.size.z, pixel);
-    let jitter = pixel_jitter(seed, frame.size.z, pixel);
+    let seed = frame.seed;
+    var rng = pcg_for_pixel(seed, frame.number, pixel);
+    let jitter = pixel_jitter(seed, frame.number, pixel);
     // `Camera::ray`.
     let sx = 2.0 * (f32(id.x) + jitter.x) * frame.inv_size.x - 1.0;
     let sy = 2.0 * (f32(id.y) + jitter.y) * frame.inv_size.y - 1.0;
     let camera_dir = unit(frame.forward.xyz + sx * frame.horizontal.xyz - sy * frame.vertical.xyz);
     let ray = make_ray(frame.origin.xyz, camera_dir, 0.0, F32_MAX);
     var sample: PathSample;
-    if frame.seed.w == 0u {
+    if frame.light_sampling == 0u {
         sample = trace_implicit(ray, &rng);
     } else {
         sample = trace_with_lights(ray, &rng);
