@@ -11,6 +11,7 @@
 //! - [`peer`]: exporting triangles and rays to a Python peer and reading its JSON;
 //! - [`quality`], [`quality_bench`], [`quality_report`]: `phr bench-quality` (RMSE at equal
 //!   time against a converged reference: our estimators and Mitsuba 3's `path`);
+//! - [`reference_export`]: any scene in the reference renderer's format, for Mitsuba 3;
 //! - [`ray_bench`], [`ray_report`]: `phr bench-rays` (our traversals against Embree);
 //! - [`build_bench`]: `phr bench-build` (every builder: build time, tree quality, Mrays/s);
 //! - [`cut_cost`]: `phr bench-cut-cost` (does PHR's `Σ |cut|` predict its build time?);
@@ -34,6 +35,7 @@ pub mod quality_report;
 pub mod ray_bench;
 pub mod ray_report;
 pub mod rays;
+pub mod reference_export;
 pub mod stats;
 pub mod suite;
 pub mod thesis;

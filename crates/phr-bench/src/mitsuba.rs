@@ -25,6 +25,10 @@ pub const VARIANT: &str = "llvm_ad_rgb";
 pub const INSTALL: &str = "install: `python3 -m pip install mitsuba numpy`, `apt-get install libllvm19`; \
     `DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so` is set automatically when present";
 
+/// `tools/render_textured.py` of this repository: render_reference.py with MTL `map_Kd`
+/// textures, which `phr bench-quality`'s textured scenes need.
+pub const TEXTURED_TOOL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tools/render_textured.py");
+
 /// Where Debian's `libllvm19` puts the library drjit needs.
 pub const DEBIAN_LIBLLVM: &str = "/usr/lib/x86_64-linux-gnu/libLLVM-19.so";
 
@@ -114,7 +118,15 @@ impl MitsubaPeer {
         // Seeds from 10⁶: the references were rendered from seed 0 (and `shared/reference`
         // keeps 10⁶ for its own second renders), so ours must not replay their samples.
         let args = ["--integrator", "path", "--rr", "--spp", &spp_arg, "--passes", &passes_arg, "--seed", "1000000"];
-        let meta = self.run_script(scene_file, &prefix, &args, threads)?;
+        // Through the wrapper that gives render_reference.py the MTL's textures (the same
+        // scene otherwise).
+        let meta = self.run(
+            &[TEXTURED_TOOL.as_ref(), "--reference-tool".as_ref(), self.tool.as_os_str()],
+            scene_file,
+            &prefix,
+            &args,
+            threads,
+        )?;
         let variant = meta["variant"].as_str().unwrap_or("unknown");
         if variant != VARIANT {
             bail!("Mitsuba ran the {variant} variant, not {VARIANT}");
@@ -127,8 +139,23 @@ impl MitsubaPeer {
     /// Runs the script on `scene_file` in the fast variant with `args`, writing `prefix.*`;
     /// returns the JSON side-car it wrote.
     fn run_script(&self, scene_file: &Path, prefix: &Path, args: &[&str], threads: usize) -> Result<Value> {
-        if !self.tool.is_file() {
-            bail!("{} not found", self.tool.display());
+        self.run(&[self.tool.as_os_str()], scene_file, prefix, args, threads)
+    }
+
+    /// Runs `script` (the script and its own first arguments) as [`MitsubaPeer::run_script`]
+    /// runs render_reference.py.
+    fn run(
+        &self,
+        script: &[&std::ffi::OsStr],
+        scene_file: &Path,
+        prefix: &Path,
+        args: &[&str],
+        threads: usize,
+    ) -> Result<Value> {
+        for file in [script[0], self.tool.as_os_str()] {
+            if !Path::new(file).is_file() {
+                bail!("{} not found", Path::new(file).display());
+            }
         }
         if threads < 2 {
             // Mitsuba 3.9.1 renders, then never returns from writing its EXR with a pool of
@@ -136,7 +163,7 @@ impl MitsubaPeer {
             bail!("the script hangs writing its image on 1 thread (Mitsuba 3.9.1); run with --threads 2 or more");
         }
         let mut cmd = Command::new(&self.python);
-        cmd.arg(&self.tool).arg(scene_file).arg("-o").arg(prefix);
+        cmd.args(script).arg(scene_file).arg("-o").arg(prefix);
         cmd.args(["--variant", VARIANT]).args(args);
         cmd.args(["--threads", &threads.to_string(), "--quiet"]);
         cmd.arg("--scenes-dir").arg(&self.scenes_dir);

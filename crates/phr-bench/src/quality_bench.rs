@@ -3,7 +3,9 @@
 //! with the images, as CSV, JSON and a Markdown table.
 //!
 //! A scene file `DIR/scenes/NAME.json` has its reference at `DIR/images/NAME.exr`, the
-//! layout of `shared/reference` (rendered by Mitsuba 3 at 4096–16384 spp).
+//! layout of `shared/reference` (rendered by Mitsuba 3 at 4096–16384 spp) and of this crate's
+//! `references` (textured Sponza, and the built-in scene, which the benchmark writes out in
+//! the reference renderer's format first: [`builtin_scene_file`]).
 
 use crate::mitsuba::MitsubaPeer;
 use crate::quality::{read_linear_image, render_within, rmse, DenoiseCost, Method};
@@ -24,10 +26,57 @@ use std::time::Duration;
 /// The reference scenes of `shared/reference`, by name.
 pub const REFERENCE_SCENES: &[&str] = &["cornell_obj", "bunny_sky", "cornell_glass_mirror", "spheres_sky"];
 
-/// The reference image of a scene file: `../images/STEM.exr` from its folder.
-pub fn reference_for(scene_file: &Path) -> PathBuf {
-    let stem = crate::suite::scene_name(scene_file);
-    scene_file.parent().unwrap_or(Path::new(".")).join("../images").join(format!("{stem}.exr"))
+/// This crate's references (`references/make_references.py` renders them): its scenes in
+/// `scenes/`, their images in `images/`.
+pub const OWN_REFERENCES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/references");
+
+/// The scenes of [`OWN_REFERENCES`], by name; `builtin` is phr's built-in scene.
+pub const OWN_SCENES: &[&str] = &["sponza_textured", "builtin"];
+
+/// The size of the built-in scene's reference.
+const BUILTIN_SIZE: u32 = 256;
+
+/// A scene to score and its converged reference.
+#[derive(Clone, Debug)]
+pub struct ScoredScene {
+    pub file: PathBuf,
+    pub reference: PathBuf,
+}
+
+impl ScoredScene {
+    /// A scene file with its reference at `../images/STEM.exr` from its folder.
+    pub fn with_reference_beside(file: PathBuf) -> Self {
+        let stem = crate::suite::scene_name(&file);
+        let reference = file.parent().unwrap_or(Path::new(".")).join("../images").join(format!("{stem}.exr"));
+        Self { file, reference }
+    }
+
+    /// The scene `name` of `shared/reference`, of [`OWN_SCENES`], or `builtin` (written out to
+    /// `work` by [`builtin_scene_file`]); else a scene file.
+    pub fn named(name: &str, work: &Path) -> Result<Self> {
+        if name == crate::suite::BUILTIN {
+            let reference = Path::new(OWN_REFERENCES).join("images/builtin.exr");
+            return Ok(Self { file: builtin_scene_file(work)?, reference });
+        }
+        if OWN_SCENES.contains(&name) {
+            return Ok(Self::with_reference_beside(Path::new(OWN_REFERENCES).join(format!("scenes/{name}.json"))));
+        }
+        if REFERENCE_SCENES.contains(&name) {
+            let dir = crate::suite::shared_scenes_dir(None)?;
+            return Ok(Self::with_reference_beside(dir.join(format!("../reference/scenes/{name}.json"))));
+        }
+        Ok(Self::with_reference_beside(PathBuf::from(name)))
+    }
+}
+
+/// phr's built-in scene in the reference renderer's format (`work/scenes/builtin.json` and its
+/// PLY files), as `references/make_references.py` renders it, so that Mitsuba 3 renders it
+/// too.
+pub fn builtin_scene_file(work: &Path) -> Result<PathBuf> {
+    let mut scene = crate::suite::open_scene(crate::suite::BUILTIN)?;
+    let view = scene.view(None).context("the built-in scene has no view")?;
+    (scene.settings.width, scene.settings.height) = (BUILTIN_SIZE, BUILTIN_SIZE);
+    crate::reference_export::export_reference_scene(&scene, &view, "builtin", &work.join("scenes"))
 }
 
 pub struct QualityOptions {
@@ -69,12 +118,12 @@ impl QualityRow {
 /// A scene file that [`measure_scene`] can score: readable, with a camera, and a reference
 /// image of its size. Returns the scene, its view and the reference's pixels. Checked for
 /// every scene before any is rendered, so that a bad one leaves no partial output.
-pub fn open_scene_with_reference(scene_file: &Path) -> Result<(Scene, CameraDesc, Vec<Vec3>)> {
-    let reference_file = reference_for(scene_file);
+pub fn open_scene_with_reference(scored: &ScoredScene) -> Result<(Scene, CameraDesc, Vec<Vec3>)> {
+    let (scene_file, reference_file) = (&scored.file, &scored.reference);
     if !reference_file.is_file() {
         bail!("{}: no reference image at {}", scene_file.display(), reference_file.display());
     }
-    let (rw, rh, reference) = read_linear_image(&reference_file)?;
+    let (rw, rh, reference) = read_linear_image(reference_file)?;
     let scene = load_scene(scene_file)?;
     let view = scene.view(None).with_context(|| format!("{} has no camera", scene_file.display()))?;
     let settings = scene.settings;
@@ -91,9 +140,14 @@ pub fn open_scene_with_reference(scene_file: &Path) -> Result<(Scene, CameraDesc
 }
 
 /// Measures one scene at every budget; each image goes to `out/images/SCENE_BUDGETs_METHOD.png`.
-pub fn measure_scene(scene_file: &Path, options: &QualityOptions, progress: &dyn Progress) -> Result<Vec<QualityRow>> {
+pub fn measure_scene(
+    scored: &ScoredScene,
+    options: &QualityOptions,
+    progress: &dyn Progress,
+) -> Result<Vec<QualityRow>> {
+    let scene_file = &scored.file;
     let name = crate::suite::scene_name(scene_file);
-    let (scene, view, reference) = open_scene_with_reference(scene_file)?;
+    let (scene, view, reference) = open_scene_with_reference(scored)?;
     let settings = scene.settings;
     progress.status(format!("{name}: building ({})", options.builder));
     let mut geometry = Geometry::new(&scene);

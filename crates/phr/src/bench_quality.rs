@@ -6,16 +6,19 @@ use crate::progress::Bar;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use phr_bench::mitsuba::MitsubaPeer;
-use phr_bench::quality_bench::{measure_scene, open_scene_with_reference, QualityOptions, REFERENCE_SCENES};
+use phr_bench::quality_bench::{
+    measure_scene, open_scene_with_reference, QualityOptions, ScoredScene, OWN_SCENES, REFERENCE_SCENES,
+};
 use phr_bench::quality_report::{markdown, write_quality_report, QualityRunInfo};
 use phr_bvh::Builder;
 use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct BenchQualityArgs {
-    /// Scene files, each with its reference at `../images/NAME.exr` from its folder (default:
-    /// the scenes of shared/reference).
-    pub scenes: Vec<PathBuf>,
+    /// Scene files, each with its reference at `../images/NAME.exr` from its folder, or the
+    /// names of the reference scenes (default: those of shared/reference, textured Sponza and
+    /// `builtin`, the built-in scene).
+    pub scenes: Vec<String>,
     /// Time budgets in seconds.
     #[arg(long, value_delimiter = ',', default_value = "1,5")]
     pub seconds: Vec<f64>,
@@ -38,29 +41,31 @@ pub fn run(args: &BenchQualityArgs) -> Result<()> {
     let mut budgets = args.seconds.clone();
     budgets.sort_by(f64::total_cmp);
     budgets.dedup();
-    let files: Vec<PathBuf> = match args.scenes.is_empty() {
+    let names: Vec<String> = match args.scenes.is_empty() {
         false => args.scenes.clone(),
-        true => {
-            let dir = phr_bench::suite::shared_scenes_dir(None)?;
-            REFERENCE_SCENES.iter().map(|s| dir.join("../reference/scenes").join(format!("{s}.json"))).collect()
-        }
+        true => REFERENCE_SCENES.iter().chain(OWN_SCENES).map(|s| s.to_string()).collect(),
     };
+    let files = names.iter().map(|n| ScoredScene::named(n, &args.out)).collect::<Result<Vec<_>>>()?;
     // Every scene and its reference first: a bad one stops the run before anything is written.
-    for file in &files {
-        open_scene_with_reference(file).with_context(|| format!("{}", file.display()))?;
+    for scored in &files {
+        open_scene_with_reference(scored).with_context(|| format!("{}", scored.file.display()))?;
     }
     let threads = rayon::current_num_threads();
     let mitsuba = match args.no_mitsuba {
         true => Err("--no-mitsuba".to_string()),
-        false => phr_render::scene::json::scenes_dir(&files[0])
+        false => files
+            .iter()
+            .find_map(|f| phr_render::scene::json::scenes_dir(&f.file))
+            .or_else(|| phr_bench::suite::shared_scenes_dir(None).ok())
             .map(|dir| MitsubaPeer::next_to(&dir))
             .ok_or_else(|| "no shared scenes folder next to the scene files".to_string()),
     };
     let options = QualityOptions { budgets, builder: args.builder, mitsuba, threads, out: args.out.clone() };
     let progress = crate::progress::bar(files.len() as u64);
     let mut rows = Vec::new();
-    for file in &files {
-        rows.extend(measure_scene(file, &options, &Bar(&progress)).with_context(|| format!("{}", file.display()))?);
+    for scored in &files {
+        let file = &scored.file;
+        rows.extend(measure_scene(scored, &options, &Bar(&progress)).with_context(|| format!("{}", file.display()))?);
     }
     progress.finish_and_clear();
     let command = std::env::args().collect::<Vec<_>>().join(" ");

@@ -11,6 +11,7 @@ mod bench_frame;
 mod bench_quality;
 mod bench_rays;
 mod bench_tune;
+mod export_reference;
 mod info;
 mod progress;
 mod render;
@@ -50,6 +51,8 @@ enum Command {
     /// Image quality at equal time: RMSE of our estimators and Mitsuba 3's path tracer
     /// against converged references.
     BenchQuality(bench_quality::BenchQualityArgs),
+    /// Write a scene in the reference renderer's format (JSON and PLY), for Mitsuba 3.
+    ExportReference(export_reference::ExportReferenceArgs),
     /// Ray throughput: binary vs wide (SIMD) BVH traversal vs Embree, on the shared scenes.
     BenchRays(bench_rays::BenchRaysArgs),
     /// Correlation of PHR's build cost Σ|cut| with its build time over a sweep of α and δ.
@@ -96,6 +99,7 @@ fn main() -> ExitCode {
         Some(Command::Render(args)) if args.device == render::Device::Gpu => render_gpu::run(&args),
         Some(Command::Render(args)) => render::run(&args),
         Some(Command::Info(args)) => info::run(&args),
+        Some(Command::ExportReference(args)) => export_reference::run(&args),
         Some(Command::Bench(args)) => bench::run(&args),
         Some(Command::BenchBuild(args)) => bench_build::run(&args),
         Some(Command::BenchFrame(args)) => bench_frame::run(&args),
