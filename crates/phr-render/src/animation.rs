@@ -8,7 +8,7 @@
 use crate::geometry::Geometry;
 use crate::motion::{Animation, AnimationTarget, Motion};
 use crate::scene::Scene;
-use glam::{Affine3A, Vec3};
+use glam::{Affine3A, Mat4, Vec3};
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -17,6 +17,9 @@ struct PosedMesh {
     /// Moved as a whole by one affine map: procedural rotations and oscillations, and no
     /// other animation of the same mesh (two animations pose it in turn).
     rigid: bool,
+    /// A mesh moved by its glTF nodes alone: the triangles of each moving node, which move as
+    /// a whole with it (each a rigid object of [`Animator::objects`]); empty otherwise.
+    node_parts: Vec<NodePart>,
     triangles: Range<usize>,
     indices: Vec<[u32; 3]>,
     rest: Vec<Vec3>,
@@ -24,10 +27,30 @@ struct PosedMesh {
     animation: Animation,
 }
 
+/// The triangles a glTF node places, and the map from the world to the node's rest frame.
+struct NodePart {
+    node: usize,
+    /// The triangles' indices in the geometry.
+    prims: Vec<u32>,
+    rest_inverse: Mat4,
+}
+
+/// What object `k` of [`Animator::objects`] is.
+#[derive(Clone, Copy)]
+enum ObjectRef {
+    /// A whole mesh of `meshes`.
+    Mesh(usize),
+    /// Node part `.1` of mesh `.0`.
+    Part(usize, usize),
+    /// Sphere `k` of `spheres`.
+    Sphere(usize),
+}
+
 /// Poses a scene's geometry at any time: holds the rest vertices of everything that moves.
 pub struct Animator {
     meshes: Vec<PosedMesh>,
     spheres: Vec<(usize, Vec3, Vec<Motion>)>,
+    objects: Vec<ObjectRef>,
 }
 
 /// An animated object's primitives (scene order, as in [`Geometry`]) and whether it moves
@@ -38,10 +61,23 @@ pub struct MovingObject {
     pub rigid: bool,
 }
 
+/// A mesh moved by its glTF nodes is moved as rigid parts, one per moving node, only when
+/// each has at least this many triangles; smaller ones deform as one mesh. A part of its own
+/// saves posing, refitting and packing its triangles every frame (about 0.05 µs a triangle on
+/// 2 cores), but every ray that meets its box enters one more tree: on the carousel
+/// (`scenes/dynamic/carousel.json`, four riders of 2,048 triangles) the moving frame stayed
+/// at 13.6 ms and the paused one rose from 11.8 to 12.7 ms at 256² (`docs/dynamic/history.md`).
+pub const NODE_PART_MIN_TRIANGLES: usize = 16_384;
+
 impl Animator {
     /// The animations of `scene`, whose geometry was flattened by [`Geometry::new`] (meshes'
     /// triangles in scene order).
     pub fn new(scene: &Scene) -> Self {
+        Self::with_node_part_minimum(scene, NODE_PART_MIN_TRIANGLES)
+    }
+
+    /// [`Animator::new`] with another [`NODE_PART_MIN_TRIANGLES`].
+    pub fn with_node_part_minimum(scene: &Scene, min_triangles: usize) -> Self {
         let mut first_triangle = Vec::with_capacity(scene.meshes.len());
         let mut next = 0;
         for mesh in &scene.meshes {
@@ -56,8 +92,14 @@ impl Animator {
                     let mesh = &scene.meshes[m];
                     let rigid = matches!(&a.animation, Animation::Procedural(m) if Motion::affine_all(m, 0.0).is_some())
                         && scene.animations.iter().filter(|b| b.target == a.target).count() == 1;
+                    let alone = scene.animations.iter().filter(|b| b.target == a.target).count() == 1;
+                    let node_parts = match &a.animation {
+                        Animation::Nodes(nodes) if alone => node_parts(mesh, nodes, first_triangle[m], min_triangles),
+                        _ => Vec::new(),
+                    };
                     meshes.push(PosedMesh {
                         rigid,
+                        node_parts,
                         triangles: first_triangle[m]..first_triangle[m] + mesh.triangles.len(),
                         indices: mesh.triangles.clone(),
                         rest: mesh.positions.clone(),
@@ -72,7 +114,15 @@ impl Animator {
                 }
             }
         }
-        Self { meshes, spheres }
+        let mut objects = Vec::new();
+        for (k, mesh) in meshes.iter().enumerate() {
+            match mesh.node_parts.len() {
+                0 => objects.push(ObjectRef::Mesh(k)),
+                n => objects.extend((0..n).map(|p| ObjectRef::Part(k, p))),
+            }
+        }
+        objects.extend((0..spheres.len()).map(ObjectRef::Sphere));
+        Self { meshes, spheres, objects }
     }
 
     /// Whether anything moves at all.
@@ -85,37 +135,52 @@ impl Animator {
         self.meshes.iter().map(|m| m.triangles.len()).sum()
     }
 
-    /// The animated objects: the meshes, then the spheres (`triangle_count`: where the spheres'
-    /// primitive indices start). Object `k` of this list is the `k` of
+    /// The animated objects: the meshes (a mesh moved by its glTF nodes alone: the triangles
+    /// of each moving node, as objects of their own), then the spheres (`triangle_count`:
+    /// where the spheres' primitive indices start). Object `k` of this list is the `k` of
     /// [`Animator::rigid_transform`].
     pub fn objects(&self, triangle_count: usize) -> Vec<MovingObject> {
-        let meshes = self.meshes.iter().map(|m| MovingObject {
-            prims: (m.triangles.start as u32..m.triangles.end as u32).collect(),
-            rigid: m.rigid,
-        });
-        let spheres =
-            self.spheres.iter().map(|(s, ..)| MovingObject { prims: vec![(triangle_count + s) as u32], rigid: true });
-        meshes.chain(spheres).collect()
+        self.objects
+            .iter()
+            .map(|&o| match o {
+                ObjectRef::Mesh(k) => {
+                    let m = &self.meshes[k];
+                    MovingObject { prims: (m.triangles.start as u32..m.triangles.end as u32).collect(), rigid: m.rigid }
+                }
+                ObjectRef::Part(k, p) => {
+                    MovingObject { prims: self.meshes[k].node_parts[p].prims.clone(), rigid: true }
+                }
+                ObjectRef::Sphere(s) => {
+                    MovingObject { prims: vec![(triangle_count + self.spheres[s].0) as u32], rigid: true }
+                }
+            })
+            .collect()
     }
 
     /// Where rigid object `k` of [`Animator::objects`] is at time `t`: the map from its rest
     /// pose. `None` for a deforming object.
     pub fn rigid_transform(&self, k: usize, t: f32) -> Option<Affine3A> {
-        match self.meshes.get(k) {
-            Some(mesh) => mesh.rigid_transform(t),
-            None => {
+        match self.objects[k] {
+            ObjectRef::Mesh(m) => self.meshes[m].rigid_transform(t),
+            ObjectRef::Part(m, p) => {
+                let part = &self.meshes[m].node_parts[p];
+                let Animation::Nodes(nodes) = &self.meshes[m].animation else { unreachable!("node parts of nodes") };
+                Some(Affine3A::from_mat4(nodes.world_at(part.node, t) * part.rest_inverse))
+            }
+            ObjectRef::Sphere(s) => {
                 // A sphere moves with its centre (its turning does not show).
-                let (_, centre, motions) = &self.spheres[k - self.meshes.len()];
+                let (_, centre, motions) = &self.spheres[s];
                 Some(Affine3A::from_translation(Motion::apply_all(motions, *centre, t) - *centre))
             }
         }
     }
 
-    /// Moves the vertices of the deforming meshes alone to time `t` (the rigid objects are
-    /// placed by [`Animator::rigid_transform`]). Boxes are not recomputed.
+    /// Moves the vertices of the deforming meshes alone to time `t` (the rigid objects, and
+    /// the node parts of meshes moved by their glTF nodes, are placed by
+    /// [`Animator::rigid_transform`]). Boxes are not recomputed.
     pub fn pose_deforming(&mut self, geometry: &mut Geometry, t: f32) {
         for mesh in &mut self.meshes {
-            if !mesh.rigid {
+            if !mesh.rigid && mesh.node_parts.is_empty() {
                 mesh.pose(geometry, t);
             }
         }
@@ -150,12 +215,55 @@ impl PosedMesh {
             .for_each(|(tri, idx)| *tri = idx.map(|k| posed[k as usize]));
     }
 
-    /// The map from its rest pose at time `t`, if it moves rigidly. (glTF node animations
-    /// count as deformations: their parts move differently.)
+    /// The map from its rest pose at time `t`, if it moves rigidly as a whole. (A glTF node
+    /// animation moves its parts differently: see [`PosedMesh::node_parts`].)
     fn rigid_transform(&self, t: f32) -> Option<Affine3A> {
         match &self.animation {
             Animation::Procedural(motions) if self.rigid => Motion::affine_all(motions, t),
             _ => None,
         }
     }
+}
+
+/// The triangles of `mesh` (its first in the geometry: `first_triangle`) that each moving node
+/// of `nodes` places, with the node's rest frame; empty (the mesh then deforms as a whole) if
+/// a part has fewer than `min_triangles`, a triangle joins vertices of different nodes, or a
+/// node's vertices do not sit where its rest frame puts them.
+fn node_parts(
+    mesh: &crate::scene::Mesh,
+    nodes: &crate::motion::NodeAnimation,
+    first_triangle: usize,
+    min_triangles: usize,
+) -> Vec<NodePart> {
+    let moving: Vec<_> = nodes.parts.iter().filter(|p| nodes.moves(p.node)).collect();
+    let mut part_of_vertex = vec![usize::MAX; mesh.positions.len()];
+    for (k, part) in moving.iter().enumerate() {
+        let rest = nodes.rest_world(part.node);
+        for (i, &local) in part.local.iter().enumerate() {
+            let v = part.first_vertex + i;
+            let (placed, at) = (rest.transform_point3(local), mesh.positions[v]);
+            if (placed - at).length() > 1e-4 * (1.0 + at.length()) {
+                return Vec::new();
+            }
+            part_of_vertex[v] = k;
+        }
+    }
+    let mut prims = vec![Vec::new(); moving.len()];
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        let [a, b, c] = tri.map(|v| part_of_vertex[v as usize]);
+        if a != b || b != c {
+            return Vec::new();
+        }
+        if a != usize::MAX {
+            prims[a].push((first_triangle + t) as u32);
+        }
+    }
+    if prims.iter().any(|p| p.len() < min_triangles) {
+        return Vec::new();
+    }
+    moving
+        .iter()
+        .zip(prims)
+        .map(|(part, prims)| NodePart { node: part.node, prims, rest_inverse: nodes.rest_world(part.node).inverse() })
+        .collect()
 }

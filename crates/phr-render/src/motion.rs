@@ -190,14 +190,19 @@ pub struct NodeAnimation {
 }
 
 impl NodeAnimation {
-    /// World matrix of `node` at time `t`, walking up its parent chain (bounded, in case a
-    /// malformed file has a cycle).
+    /// World matrix of `node` at time `t`.
     fn world(&self, node: usize, t: f32) -> Mat4 {
-        let mut m = self.nodes[node].local(t);
+        self.chain(node, |n| n.local(t))
+    }
+
+    /// `outer` times the product of `local` over `node` and its ancestors, walking up the
+    /// parent chain (bounded, in case a malformed file has a cycle).
+    fn chain(&self, node: usize, local: impl Fn(&AnimatedNode) -> Mat4) -> Mat4 {
+        let mut m = local(&self.nodes[node]);
         let mut parent = self.nodes[node].parent;
         let mut guard = 0;
         while let Some(p) = parent {
-            m = self.nodes[p].local(t) * m;
+            m = local(&self.nodes[p]) * m;
             parent = self.nodes[p].parent;
             guard += 1;
             if guard > self.nodes.len() {
@@ -224,9 +229,29 @@ impl NodeAnimation {
         false
     }
 
+    /// The animation's own time at scene time `t`: looped over its duration.
+    fn looped(&self, t: f32) -> f32 {
+        if self.duration > 0.0 {
+            t.rem_euclid(self.duration)
+        } else {
+            0.0
+        }
+    }
+
+    /// World matrix of `node` at scene time `t` (looped).
+    pub fn world_at(&self, node: usize, t: f32) -> Mat4 {
+        self.world(node, self.looped(t))
+    }
+
+    /// World matrix of `node` in the rest pose the loader placed the vertices in: every node's
+    /// own translation, rotation and scale, without the tracks.
+    pub fn rest_world(&self, node: usize) -> Mat4 {
+        self.chain(node, |n| Mat4::from_scale_rotation_translation(n.scale, n.rotation, n.translation))
+    }
+
     /// Writes the posed vertices of every part at time `t` (looped) into `positions`.
     pub fn pose(&self, positions: &mut [Vec3], t: f32) {
-        let t = if self.duration > 0.0 { t.rem_euclid(self.duration) } else { 0.0 };
+        let t = self.looped(t);
         for part in &self.parts {
             let m = self.world(part.node, t);
             let out = &mut positions[part.first_vertex..part.first_vertex + part.local.len()];

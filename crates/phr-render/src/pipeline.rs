@@ -275,7 +275,12 @@ struct Parts {
 
 impl FramePipeline {
     pub fn new(scene: Scene, settings: PipelineSettings, camera: CameraDesc) -> Self {
-        let mut animator = Animator::new(&scene);
+        let animator = Animator::new(&scene);
+        Self::with_animator(scene, settings, camera, animator)
+    }
+
+    /// [`FramePipeline::new`] with `animator` (made for `scene`) posing it.
+    pub fn with_animator(scene: Scene, settings: PipelineSettings, camera: CameraDesc, mut animator: Animator) -> Self {
         let geometry = posed_geometry(&scene, &mut animator, settings.pipeline, 0.0);
         let film = Film::new(settings.width, settings.height);
         Self {

@@ -8,6 +8,7 @@ use phr_bvh::dynamic::DynamicBvh;
 use phr_bvh::phr::PhrOptions;
 use phr_bvh::triangle::{intersect_triangle, triangle_normal};
 use phr_bvh::{Builder, Ray, TraversalStats};
+use phr_render::animation::Animator;
 use phr_render::geometry::Geometry;
 use phr_render::lights::LightSet;
 use phr_render::motion::{Animation, AnimationTarget, Motion, ObjectAnimation};
@@ -169,6 +170,42 @@ fn an_object_with_two_animations_deforms() {
         assert_eq!(two.geometry().part_count(), 2, "the floor stands still, the carousel deforms");
         assert_eq!(thesis.geometry().triangles, two.geometry().triangles, "frame {frame}: posed alike");
         same_hits(thesis.geometry(), two.geometry(), frame);
+    }
+}
+
+/// A glTF moved by its nodes alone moves each node's triangles as a rigid part, placed by the
+/// node's world matrix: the carousel's platform and riders are parts of their own, moved by
+/// transforms, and only the floor's wave deforms; every frame hits what the thesis pipeline
+/// (every vertex posed) hits, with either two-level pipeline. (The carousel's parts are
+/// smaller than `NODE_PART_MIN_TRIANGLES`, so the viewer deforms them; the test splits parts
+/// of any size.)
+#[test]
+fn gltf_nodes_move_as_rigid_parts() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/dynamic/carousel.json");
+    let load = || phr_render::scene::load_scene(&path).unwrap();
+    let scene = load();
+    let triangles = Geometry::new(&scene).triangle_count();
+    let default = Animator::new(&scene).objects(triangles);
+    assert_eq!(default.iter().filter(|o| !o.rigid).count(), 2, "below the minimum, the carousel deforms");
+    let objects = Animator::with_node_part_minimum(&scene, 0).objects(triangles);
+    let rigid = objects.iter().filter(|o| o.rigid).count();
+    let deforming: Vec<_> = objects.iter().filter(|o| !o.rigid).collect();
+    // The floor deforms; the platform, the riders and the swinging ball are rigid.
+    assert_eq!(deforming.len(), 1, "only the floor deforms");
+    assert!(rigid >= 4, "the carousel's nodes are rigid parts: {rigid} rigid objects");
+    for kind in [PipelineKind::TwoLevel, PipelineKind::Async] {
+        let split = |pipeline: FramePipeline| {
+            let scene = load();
+            let animator = Animator::with_node_part_minimum(&scene, 0);
+            FramePipeline::with_animator(scene, pipeline.settings().clone(), pipeline.camera().clone(), animator)
+        };
+        let (mut thesis, mut two) = (pipeline_of(load(), PipelineKind::Thesis), split(pipeline_of(load(), kind)));
+        for frame in 0..4 {
+            thesis.step(0.37);
+            two.step(0.37);
+            assert!(two.geometry().part_count() >= rigid + 2, "static, deforming and rigid parts");
+            same_hits(thesis.geometry(), two.geometry(), frame);
+        }
     }
 }
 
