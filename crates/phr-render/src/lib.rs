@@ -8,6 +8,7 @@
 //! dynamic scenes and [`pipeline`] runs the per-frame loop of the interactive viewer.
 
 pub mod animation;
+pub mod auto_builder;
 pub mod camera;
 pub mod denoise;
 pub mod environment;

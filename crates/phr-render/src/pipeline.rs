@@ -23,6 +23,7 @@
 //! the viewer's statistics panel and the headless CSV show.
 
 use crate::animation::Animator;
+use crate::auto_builder::AutoBuilder;
 use crate::camera::Camera;
 use crate::camera::CameraDesc;
 use crate::denoise::{Filter, Guide, Temporal};
@@ -172,18 +173,20 @@ pub struct FrameReport {
     /// What traced the frame's samples: `cpu`, or the [`FrameTracer::name`] of the
     /// pipeline's tracer.
     pub device: &'static str,
+    /// The builder of the frame's tree.
+    pub builder: Builder,
 }
 
 impl FrameReport {
     /// The columns of [`FrameReport::csv_row`]: what `phr view --headless` and `phr animate`
     /// write per frame.
     pub const CSV_HEADER: &'static str =
-        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,tree_age,denoise_ms,upload_ms,device";
+        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,tree_age,denoise_ms,upload_ms,device,builder";
 
     /// This frame as a CSV row of [`FrameReport::CSV_HEADER`]'s columns.
     pub fn csv_row(&self) -> String {
         format!(
-            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{},{:.3},{:.3},{}",
+            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{},{:.3},{:.3},{},{}",
             self.frame,
             self.time,
             self.moved as u8,
@@ -201,7 +204,8 @@ impl FrameReport {
             self.tree_age,
             self.denoise_ms,
             self.upload_ms,
-            self.device
+            self.device,
+            self.builder
         )
     }
 
@@ -236,6 +240,8 @@ pub struct FramePipeline {
     tracer: Option<Box<dyn FrameTracer>>,
     /// [`FrameJob::version`]: counts the changes of the geometry, its tree and the lights.
     version: u64,
+    /// Online tuning: the builder chosen by measuring moving frames ([`FramePipeline::set_auto`]).
+    auto: Option<AutoBuilder>,
     settings: PipelineSettings,
     camera: CameraDesc,
     film: Film,
@@ -295,6 +301,7 @@ impl FramePipeline {
             lights: None,
             tracer: None,
             version: 0,
+            auto: None,
             settings,
             camera,
             film,
@@ -326,6 +333,31 @@ impl FramePipeline {
     /// The device of the pipeline's tracer, `None` without one (or after it failed).
     pub fn tracer(&self) -> Option<String> {
         self.tracer.as_ref().map(|t| format!("{} ({})", t.name(), t.describe()))
+    }
+
+    /// Turns online tuning of the builder on (`Some`: it picks the builder from then on, by
+    /// measuring moving frames) or off (the builder stays the one last picked).
+    pub fn set_auto(&mut self, auto: Option<AutoBuilder>) {
+        if let Some(a) = &auto {
+            self.switch_builder(a.current());
+        }
+        self.auto = auto;
+    }
+
+    /// The online tuner, when it is on.
+    pub fn auto(&self) -> Option<&AutoBuilder> {
+        self.auto.as_ref()
+    }
+
+    /// Builds the trees with `builder` from the next frame on.
+    fn switch_builder(&mut self, builder: Builder) {
+        if builder != self.settings.builder {
+            self.settings.builder = builder;
+            self.tree_dirty = true;
+            self.dynamic = None;
+            self.parts = None;
+            self.rebuilder = None;
+        }
     }
 
     pub fn scene(&self) -> &Scene {
@@ -364,6 +396,11 @@ impl FramePipeline {
     /// Changes settings; a different builder rebuilds the tree, a different size makes a new
     /// film, and any change restarts accumulation.
     pub fn set_settings(&mut self, settings: PipelineSettings) {
+        // With online tuning on, the tuner picks the builder.
+        let settings = match self.auto {
+            Some(_) => PipelineSettings { builder: self.settings.builder, ..settings },
+            None => settings,
+        };
         if settings == self.settings {
             return;
         }
@@ -450,6 +487,13 @@ impl FramePipeline {
             }
         }
         report.frame_ms = ms_since(start);
+        report.builder = self.settings.builder;
+        if let (true, Some(auto)) = (moved, &mut self.auto) {
+            // The tuner sees the frames whose tree the builder made.
+            if let Some(next) = auto.record(report.frame_ms) {
+                self.switch_builder(next);
+            }
+        }
         self.frame += 1;
         report.moved = moved;
         report.time = self.time;

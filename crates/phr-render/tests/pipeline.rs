@@ -8,6 +8,7 @@
 use glam::Vec3;
 use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
 use phr_bvh::{validate, Builder, Ray};
+use phr_render::auto_builder::{AutoBuilder, AutoState, MARGIN, RECENT_FRAMES, TRIAL_FRAMES};
 use phr_render::frame_tracer::{FrameJob, FrameTracer, TracedFrame};
 use phr_render::lights::LightSet;
 use phr_render::pipeline::{FramePipeline, PipelineKind, PipelineSettings, ViewMode, ACCUMULATED_DENOISE_FROM};
@@ -147,6 +148,47 @@ fn a_moving_frame_shows_only_the_new_pose_with_lights_where_they_are() {
             assert!(expected.iter().any(|c| c.max_element() > 0.1), "lights {lights}: a dark image proves nothing");
         }
     }
+}
+
+/// With online tuning on, each candidate builds its trial of moving frames in turn, every
+/// tree is valid and traces the posed scene, each frame shows what a fresh renderer draws, and
+/// the tuner then keeps the candidate whose frames were fastest; a builder the settings ask
+/// for meanwhile does not override it, and paused frames are not counted.
+#[test]
+fn the_auto_builder_tries_each_candidate_then_keeps_the_fastest() {
+    let tuner = AutoBuilder::default();
+    let candidates = tuner.candidates.clone();
+    let mut p = pipeline(Builder::PHR_FAST, true);
+    p.set_auto(Some(tuner));
+    let mut used = Vec::new();
+    for frame in 0..candidates.len() * TRIAL_FRAMES {
+        let report = p.step(0.05);
+        assert!(report.moved);
+        used.push(report.builder);
+        check_geometry(&p, report.builder, frame);
+        let expected = fresh_render(&p, report.frame as u32, true);
+        assert!(bits(&p.image()) == bits(&expected), "frame {frame} ({}): image differs", report.builder);
+        // The panel's builder does not fight the tuner.
+        let mut settings = p.settings().clone();
+        settings.builder = Builder::PHR_HQ;
+        p.set_settings(settings);
+    }
+    for (k, c) in candidates.iter().enumerate() {
+        assert!(used[k * TRIAL_FRAMES..(k + 1) * TRIAL_FRAMES].iter().all(|b| b == c), "trial {k}: {used:?}");
+    }
+    let auto = p.auto().expect("on");
+    let AutoState::Chosen { index, median_ms } = auto.state else { panic!("still exploring: {}", auto.describe()) };
+    let fastest = auto.medians.iter().map(|m| m.expect("measured")).fold(f64::INFINITY, f64::min);
+    // The fastest, or the first (the default) when it is within the noise margin of it.
+    assert!(median_ms == fastest || (index == 0 && median_ms <= fastest * (1.0 + MARGIN)), "{}", auto.describe());
+    assert_eq!(p.step(0.05).builder, candidates[index]);
+    // Paused frames leave the tuner alone.
+    p.playing = false;
+    let before = format!("{:?}", p.auto().unwrap().state);
+    for _ in 0..3 * RECENT_FRAMES {
+        p.step(0.05);
+    }
+    assert_eq!(format!("{:?}", p.auto().unwrap().state), before);
 }
 
 #[test]

@@ -218,3 +218,28 @@ fn no_display_falls_back_to_headless() {
 fn unusable_display_falls_back_to_headless() {
     expect_fallback(Some(":64999"), 2, "cannot open a window");
 }
+
+/// `--builder auto`: the moving frames try the LBVH, PHR-Fast, PHR-HQ and binned SAH in turn
+/// (the CSV's `builder` column), then keep one of them, and the summary says which and why.
+#[test]
+fn the_auto_builder_tries_the_builders_then_keeps_one() {
+    let dir = TempDir::new("view-auto");
+    let scene = repo_path("scenes/dynamic/carousel.json");
+    let args = [scene.to_str().unwrap(), "--builder", "auto", "--pipeline", "thesis", "--frames", "40"];
+    let mut all = vec!["--threads", "2", "view", "--headless", "--out", "auto", "--png-every", "0", "--width", "48"];
+    all.extend(["--height", "32"]);
+    all.extend(args);
+    let out = phr_ok(&dir.0, &all, Duration::from_secs(300));
+    assert!(out.stdout.contains("auto: ") && out.stdout.contains("the fastest of"), "{}", out.stdout);
+    let csv = Table::read(&dir.join("auto/frames.csv"));
+    let builders: Vec<&str> = (0..csv.rows.len()).map(|r| csv.str(r, "builder")).collect();
+    let mut distinct = builders.clone();
+    distinct.dedup();
+    // Four trials of 8 frames, then the choice for the rest.
+    for (k, name) in ["phr-fast", "lbvh", "phr-hq", "binned-sah"].iter().enumerate() {
+        assert!(builders[8 * k..8 * (k + 1)].iter().all(|b| b == name), "trial {k} is not {name}'s: {builders:?}");
+    }
+    assert!(distinct.len() >= 4, "{builders:?}");
+    assert!(builders[32..].iter().all(|b| *b == builders[39]), "{builders:?}");
+    assert!(out.stdout.contains(&format!("auto: {}", builders[39])), "{}", out.stdout);
+}

@@ -100,6 +100,9 @@ fn print_summary(args: &ViewArgs, pipeline: &FramePipeline, summary: &Summary) {
         1e3 / frame_ms.max(1e-9),
         median(6),
     );
+    if let Some(auto) = pipeline.auto() {
+        println!("{}", auto.describe());
+    }
     match pipeline.tracer() {
         Some(device) => {
             println!("colour frames traced on the {device}; median upload {:.2} ms (in the render time)", median(7))

@@ -12,6 +12,7 @@ use crate::scene_arg::{open_scene, BUILTIN};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use phr_bvh::Builder;
+use phr_render::auto_builder::AutoBuilder;
 use phr_render::pipeline::{FramePipeline, PipelineKind, PipelineSettings, ViewMode};
 use phr_render::scene::RenderSettings;
 use std::path::PathBuf;
@@ -41,9 +42,11 @@ pub struct ViewArgs {
     width: u32,
     #[arg(long, default_value_t = 256)]
     height: u32,
-    /// lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah, binned-sah or sbvh.
+    /// lbvh, phr-fast, phr-hq, phr:ALPHA,DELTA, sweep-sah, binned-sah or sbvh; or `auto`: the
+    /// builder whose moving frames are fastest, found by trying each (LBVH, PHR-Fast, PHR-HQ,
+    /// binned SAH) for a few moving frames, and again when the frame time drifts.
     #[arg(long, default_value = "phr-fast")]
-    builder: Builder,
+    builder: BuilderArg,
     /// Children per node for PHR builders (2 to 16).
     #[arg(long, default_value_t = 2)]
     branching: u32,
@@ -84,6 +87,24 @@ pub struct ViewArgs {
     /// poses, builds the trees, accumulates and denoises, and traces the other modes.
     #[arg(long, value_enum, default_value = "cpu")]
     device: Device,
+}
+
+/// `--builder`: a builder, or `auto` (online tuning).
+#[derive(Clone, Copy, Debug)]
+pub enum BuilderArg {
+    Auto,
+    Fixed(Builder),
+}
+
+impl std::str::FromStr for BuilderArg {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(BuilderArg::Auto),
+            _ => s.parse().map(BuilderArg::Fixed),
+        }
+    }
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -180,7 +201,16 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
     let camera = scene
         .view(args.view.as_deref())
         .with_context(|| format!("no view {:?} (the scene has: {})", args.view, scene.view_names().join(", ")))?;
-    let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;
+    let (builder, auto) = match args.builder {
+        BuilderArg::Fixed(b) => (b.with_branching(args.branching).map_err(anyhow::Error::msg)?, None),
+        BuilderArg::Auto if args.branching != 2 => {
+            anyhow::bail!("--builder auto tries binary builders: leave --branching at 2")
+        }
+        BuilderArg::Auto => {
+            let tuner = AutoBuilder::default();
+            (tuner.current(), Some(tuner))
+        }
+    };
     let max_depth = args.max_depth.unwrap_or(scene.settings.max_depth.min(8));
     let size = RenderSettings { width: args.width, height: args.height, spp: 1, max_depth };
     size.check().map_err(anyhow::Error::msg)?;
@@ -198,6 +228,7 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
     if on_gpu {
         pipeline = device::attach_gpu(pipeline)?;
     }
+    pipeline.set_auto(auto);
     pipeline.playing = !args.paused;
     Ok(pipeline)
 }

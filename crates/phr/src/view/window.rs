@@ -18,6 +18,7 @@ use eframe::egui;
 use glam::Vec3;
 use phr_bvh::phr::PhrOptions;
 use phr_bvh::Builder;
+use phr_render::auto_builder::AutoBuilder;
 use phr_render::camera::CameraDesc;
 use phr_render::denoise::{oidn, Filter};
 use phr_render::output::write_image;
@@ -36,6 +37,8 @@ const MAX_SAMPLES: u32 = 4096;
 /// The builders the panel offers.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum BuilderChoice {
+    /// Online tuning: the builder whose moving frames are fastest ([`AutoBuilder`]).
+    Auto,
     Lbvh,
     PhrFast,
     PhrHq,
@@ -49,7 +52,8 @@ enum BuilderChoice {
 }
 
 impl BuilderChoice {
-    const ALL: [BuilderChoice; 8] = [
+    const ALL: [BuilderChoice; 9] = [
+        BuilderChoice::Auto,
         BuilderChoice::Lbvh,
         BuilderChoice::PhrFast,
         BuilderChoice::PhrHq,
@@ -62,6 +66,7 @@ impl BuilderChoice {
 
     fn label(self) -> &'static str {
         match self {
+            BuilderChoice::Auto => "auto (fastest moving frame)",
             BuilderChoice::Lbvh => "LBVH",
             BuilderChoice::PhrFast => "PHR-Fast (α 0.5, δ 6)",
             BuilderChoice::PhrHq => "PHR-HQ (α 0.55, δ 9)",
@@ -94,6 +99,8 @@ struct Controls {
     save_render: bool,
     /// Run the tuner, then use its α, δ.
     tune: bool,
+    /// Online tuning of the builder.
+    auto: bool,
     quit: bool,
 }
 
@@ -111,6 +118,8 @@ struct Published {
     /// α, δ found by the tuner.
     tuned: Option<(f32, f32)>,
     tuning: bool,
+    /// What online tuning does, when it is on.
+    auto: Option<String>,
 }
 
 struct Shared {
@@ -143,10 +152,12 @@ pub fn run(args: &ViewArgs, pipeline: FramePipeline) -> Result<(), WindowError> 
         rewind: false,
         save_render: false,
         tune: false,
+        auto: pipeline.auto().is_some(),
         quit: false,
     };
     let shared = Arc::new(Shared { controls: Mutex::new(controls.clone()), published: Mutex::default() });
     let (choice, alpha, delta, branching) = match settings.builder {
+        _ if pipeline.auto().is_some() => (BuilderChoice::Auto, 0.5, 6.0, 2),
         Builder::Lbvh(_) => (BuilderChoice::Lbvh, 0.5, 6.0, 2),
         Builder::SweepSah(_) => (BuilderChoice::SweepSah, 0.5, 6.0, 2),
         Builder::BinnedSah(_) => (BuilderChoice::BinnedSah, 0.5, 6.0, 2),
@@ -246,6 +257,7 @@ impl eframe::App for ViewerApp {
         });
         self.controls.camera = self.camera.desc();
         self.controls.settings.builder = self.builder();
+        self.controls.auto = self.choice == BuilderChoice::Auto;
         let (w, h) = self.base_size;
         self.controls.settings.width = ((w as f32 * self.scale).round() as u32).max(8);
         self.controls.settings.height = ((h as f32 * self.scale).round() as u32).max(8);
@@ -267,6 +279,8 @@ impl ViewerApp {
         let phr =
             |alpha, delta| Builder::Phr(PhrOptions { branching: self.branching, ..PhrOptions::with(alpha, delta) });
         match self.choice {
+            // The pipeline's tuner picks it.
+            BuilderChoice::Auto => Builder::PHR_FAST,
             BuilderChoice::Lbvh => Builder::Lbvh(Default::default()),
             BuilderChoice::PhrFast => phr(PhrOptions::FAST.alpha, PhrOptions::FAST.delta),
             BuilderChoice::PhrHq => phr(PhrOptions::HQ.alpha, PhrOptions::HQ.delta),
@@ -415,9 +429,13 @@ impl ViewerApp {
         let history: Vec<[f32; 3]> = published.history.iter().copied().collect();
         let message = published.message.clone();
         let (tuned, tuning) = (published.tuned, published.tuning);
+        let auto = published.auto.clone();
         drop(published);
 
         self.bvh_controls(ui, tuned, tuning);
+        if let (BuilderChoice::Auto, Some(auto)) = (self.choice, auto) {
+            ui.label(egui::RichText::new(auto).small());
+        }
         self.image_controls(ui);
         self.animation_controls(ui, report.time);
         self.statistics(ui, &report, &history, message);
@@ -538,6 +556,7 @@ impl ViewerApp {
                 ui.end_row();
             };
             row("triangles", format!("{}", self.triangles));
+            row("builder", report.builder.to_string());
             row("pose", format!("{:.2} ms", report.pose_ms));
             row("refit", format!("{:.2} ms", report.refit_ms));
             row("PHR / build", format!("{:.2} ms", report.build_ms));
@@ -618,6 +637,9 @@ fn worker(mut pipeline: FramePipeline, shared: Arc<Shared>, ctx: egui::Context, 
             continue;
         }
         pipeline.set_camera(controls.camera);
+        if controls.auto != pipeline.auto().is_some() {
+            pipeline.set_auto(controls.auto.then(AutoBuilder::default));
+        }
         pipeline.set_settings(controls.settings);
         pipeline.playing = controls.playing;
         pipeline.speed = controls.speed;
@@ -645,6 +667,7 @@ fn worker(mut pipeline: FramePipeline, shared: Arc<Shared>, ctx: egui::Context, 
         p.height = pipeline.settings().height;
         p.rgba = rgba;
         p.report = report;
+        p.auto = pipeline.auto().map(AutoBuilder::describe);
         if p.history.len() == HISTORY {
             p.history.pop_front();
         }
