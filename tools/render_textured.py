@@ -130,11 +130,12 @@ def with_textures(rr):
             for lib in mtllibs:
                 if os.path.exists(lib):
                     mtl.update(read_mtl(lib))
-            overridden = set(obj.get("materials", {})) | ({"*"} if obj.get("material") else set())
+            # Materials the scene file names for this object replace the MTL's, textures and all.
+            overrides, fallback = obj.get("materials", {}), obj.get("material")
             kept = {}
             for name, faces in groups.items():
                 image = mtl.get(name, {}).get("map_Kd")
-                if image is None or name in overridden or "*" in overridden:
+                if image is None or name in overrides or fallback is not None:
                     kept[name] = faces
                     continue
                 if not os.path.exists(image):

@@ -204,11 +204,11 @@ impl GpuTracer {
     /// The mean of what has accumulated, read back (waits for the submitted frames): after one
     /// frame, its samples.
     pub fn mean(&self) -> Result<Vec<Vec3>, GpuError> {
-        let n = self.samples.max(1) as f32;
-        let bytes = self.gpu.read(&self.sum, u64::from(self.width) * u64::from(self.height) * 16)?;
-        Ok(bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes)
+        let n = f64::from(self.samples.max(1));
+        Ok(self
+            .read_sums(&self.sum)?
             .into_iter()
-            .map(|[r, g, b, _]| Vec3::new(r, g, b) / n)
+            .map(|[r, g, b]| Vec3::new((r / n) as f32, (g / n) as f32, (b / n) as f32))
             .collect())
     }
 

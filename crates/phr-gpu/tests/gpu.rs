@@ -233,11 +233,12 @@ fn frames_equal_the_cpu_pixel_by_pixel() {
                 tracer.render(&uploaded, frame..frame + 1);
                 let gpu_pixels = tracer.film().unwrap().mean();
                 let cpu_pixels = cpu.render_frame(frame).0;
-                let (share, lit) = alike_share(&cpu_pixels, &gpu_pixels);
-                let what = format!("{name}, light sampling {sampled}, frame {frame}");
-                println!("{what}: {:.2} % of {lit} lit pixels alike", 100.0 * share);
-                assert!(lit > 100, "{what}: too few lit pixels ({lit})");
-                assert!(share >= 0.98, "{what}: only {:.2} % of the lit pixels alike", 100.0 * share);
+                assert_alike(
+                    &cpu_pixels,
+                    &gpu_pixels,
+                    100,
+                    &format!("{name}, light sampling {sampled}, frame {frame}"),
+                );
             }
         }
     }
@@ -323,10 +324,10 @@ fn an_updated_scene_is_the_moved_one() {
     }
 }
 
-/// The share of the pixels lit on either side whose samples agree to 1e-3 (relative), and how
-/// many are lit. Black samples (paths that never reached a light) agree whatever the random
-/// numbers, so they are left out.
-fn alike_share(cpu: &[Vec3], gpu: &[Vec3]) -> (f64, usize) {
+/// At least 98 % of the pixels lit on either side (more than `min_lit` of them) have samples
+/// that agree to 1e-3 (relative). Black samples (paths that never reached a light) agree
+/// whatever the random numbers, so they are left out.
+fn assert_alike(cpu: &[Vec3], gpu: &[Vec3], min_lit: usize, what: &str) {
     let lit: Vec<(Vec3, Vec3)> = cpu
         .iter()
         .zip(gpu)
@@ -335,7 +336,10 @@ fn alike_share(cpu: &[Vec3], gpu: &[Vec3]) -> (f64, usize) {
         .collect();
     let close = |c: Vec3, g: Vec3| (c - g).abs().max_element() <= 1e-3 * (1.0 + c.abs().max_element());
     let alike = lit.iter().filter(|(c, g)| close(*c, *g)).count();
-    (alike as f64 / lit.len().max(1) as f64, lit.len())
+    let share = alike as f64 / lit.len().max(1) as f64;
+    println!("{what}: {:.2} % of {} lit pixels alike", 100.0 * share, lit.len());
+    assert!(lit.len() > min_lit, "{what}: too few lit pixels ({})", lit.len());
+    assert!(share >= 0.98, "{what}: only {:.2} % of the lit pixels alike", 100.0 * share);
 }
 
 /// The viewer's pipeline with the GPU tracing its frames ([`GpuFrames`]) shows the CPU's
@@ -379,10 +383,7 @@ fn the_viewers_frames_on_the_gpu_are_the_cpus() {
         let (g, c) = (on_gpu.step(0.1), on_cpu.step(0.1));
         assert_eq!(g.device, "gpu", "frame {frame}");
         assert_eq!((g.moved, g.samples), (c.moved, c.samples), "frame {frame}");
-        let (share, lit) = alike_share(&on_cpu.raw_image(), &on_gpu.raw_image());
-        println!("viewer frame {frame}: {:.2} % of {lit} lit pixels alike", 100.0 * share);
-        assert!(lit > 300, "frame {frame}: too few lit pixels ({lit})");
-        assert!(share >= 0.98, "frame {frame}: only {:.2} % of the lit pixels alike", 100.0 * share);
+        assert_alike(&on_cpu.raw_image(), &on_gpu.raw_image(), 300, &format!("viewer frame {frame}"));
     }
 }
 

@@ -141,15 +141,11 @@ impl AutoBuilder {
                 if *frames == 1 { "" } else { "s" }
             ),
             AutoState::Chosen { index, median_ms } => {
-                format!("auto: {} ({median_ms:.1} ms a moving frame, the fastest of {})", self.candidates[*index], {
-                    let tried: Vec<String> = self
-                        .candidates
-                        .iter()
-                        .zip(&self.medians)
-                        .filter_map(|(b, m)| Some(format!("{b} {:.1}", (*m)?)))
-                        .collect();
-                    tried.join(", ")
-                })
+                let scores: Vec<String> = (self.candidates.iter().zip(&self.medians))
+                    .filter_map(|(b, m)| Some(format!("{b} {:.1}", (*m)?)))
+                    .collect();
+                let chosen = self.candidates[*index];
+                format!("auto: {chosen} ({median_ms:.1} ms a moving frame, the fastest of {})", scores.join(", "))
             }
         }
     }
