@@ -11,6 +11,7 @@
 
 use crate::rays::RaySet;
 use crate::throughput::{mean_counts, throughput};
+use phr_bvh::binned_sah::build_binned_sah_wide;
 use phr_bvh::phr::{build_phr_wide, AuxTree};
 use phr_bvh::{sah_cost, Builder, PackedTriangles, Ray, SahConstants, TraversalStats, WideBvh};
 use phr_render::geometry::{Geometry, WIDTH};
@@ -33,8 +34,9 @@ pub struct BuildRow {
     pub total_ms: f64,
     /// The collapse to the renderer's 8-wide BVH and the triangle packing.
     pub wide_ms: f64,
-    /// PHR builders: PHR straight to the 8-wide BVH (no binary tree, no collapse) and the
-    /// triangle packing; what `build_ms + wide_ms` become with the direct output.
+    /// PHR and binned SAH: the builder straight to the 8-wide BVH (no binary tree, no
+    /// collapse) and the triangle packing; what `build_ms + wide_ms` become with the direct
+    /// output.
     pub direct_ms: Option<f64>,
     pub sah_11: f64,
     pub sah_21: f64,
@@ -75,15 +77,13 @@ pub fn measure_builder(
                 aux.refit(&geometry.boxes);
                 start.elapsed()
             });
-            // PHR straight to the wide tree, then the packing, into the previous build's memory.
-            let (mut wide, mut packed) = (WideBvh::<WIDTH>::default(), PackedTriangles::default());
-            let direct = median_ms(repeats, || {
-                let start = Instant::now();
-                build_phr_wide(&aux, options, &mut wide);
-                packed.repack(&wide.prim_indices, &geometry.triangles);
-                start.elapsed()
+            let direct = direct_ms(repeats, geometry, |wide| {
+                build_phr_wide(&aux, options, wide);
             });
             (Some(refit), Some(direct))
+        }
+        Builder::BinnedSah(options) => {
+            (None, Some(direct_ms(repeats, geometry, |wide| build_binned_sah_wide(&geometry.boxes, options, wide))))
         }
         _ => (None, None),
     };
@@ -116,6 +116,18 @@ pub fn measure_builder(
         diffuse_nodes_per_ray,
         diffuse_prims_per_ray,
     }
+}
+
+/// The median time of a builder's direct wide output (`build`, into the previous build's
+/// memory, as a dynamic scene builds every frame) with the triangle packing after it.
+fn direct_ms(repeats: usize, geometry: &Geometry, mut build: impl FnMut(&mut WideBvh<WIDTH>)) -> f64 {
+    let (mut wide, mut packed) = (WideBvh::<WIDTH>::default(), PackedTriangles::default());
+    median_ms(repeats, || {
+        let start = Instant::now();
+        build(&mut wide);
+        packed.repack(&wide.prim_indices, &geometry.triangles);
+        start.elapsed()
+    })
 }
 
 /// The median of `repeats` (at least 1) timings, in milliseconds.

@@ -38,6 +38,7 @@ use crate::render::Renderer;
 use crate::scene::RenderSettings;
 use crate::scene::Scene;
 use glam::Vec3;
+use phr_bvh::binned_sah::build_binned_sah_wide;
 use phr_bvh::dynamic::DynamicBvh;
 use phr_bvh::phr::PhrOptions;
 use phr_bvh::{sah_cost, wide_sah_cost, Aabb, Builder, SahConstants, TraversalStats};
@@ -587,6 +588,13 @@ impl FramePipeline {
                 report.build_ms += timings.build.as_secs_f64() * 1e3;
                 report.wide_ms = wide_time.as_secs_f64() * 1e3;
                 self.build_cost = timings.build_cost;
+            }
+            Builder::BinnedSah(options) => {
+                self.tree_age = 0;
+                let (_, wide_time) =
+                    self.geometry.set_part_wide(d, |wide| build_binned_sah_wide(boxes, &options, wide));
+                report.wide_ms = wide_time.as_secs_f64() * 1e3;
+                report.build_ms += ms_since(build_start) - report.wide_ms;
             }
             builder => {
                 self.tree_age = 0;

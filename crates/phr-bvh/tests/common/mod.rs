@@ -159,3 +159,70 @@ pub fn adversarial_meshes() -> Vec<(&'static str, Vec<[Vec3; 3]>)> {
         ("random soup", random_soup(5000, 1.0, &mut rng)),
     ]
 }
+
+/// A wide tree as its builder decided it, independent of where nodes sit in memory (to
+/// compare a direct wide build with the collapse of a binary one): depth first, each slot's
+/// box bits, then its sorted primitives (a leaf) or its subtree.
+pub fn canonical_wide<const N: usize>(wide: &phr_bvh::WideBvh<N>) -> Vec<u64> {
+    let mut out = Vec::new();
+    if wide.nodes.is_empty() {
+        return out;
+    }
+    let mut stack = vec![0u32];
+    while let Some(n) = stack.pop() {
+        let node = &wide.nodes[n as usize];
+        let mut interior = Vec::new();
+        for i in (0..N).filter(|&i| node.is_used(i)) {
+            let b = node.child_bounds(i);
+            out.extend([b.min, b.max].iter().flat_map(|v| v.to_array()).map(|x| x.to_bits() as u64));
+            if node.count[i] > 0 {
+                let (first, count) = (node.child[i] as usize, node.count[i] as usize);
+                let mut prims = wide.prim_indices[first..first + count].to_vec();
+                prims.sort_unstable();
+                out.push(u64::MAX - count as u64);
+                out.extend(prims.iter().map(|&p| p as u64));
+            } else {
+                out.push(u64::MAX);
+                interior.push(node.child[i]);
+            }
+        }
+        stack.extend(interior.into_iter().rev());
+    }
+    out
+}
+
+/// Checks a wide tree over `tris` (`boxes` their boxes): the wide invariants, and brute
+/// force's closest hits on 100 random rays. Returns its leaf count.
+pub fn assert_wide_tree_sound<const N: usize>(
+    wide: &phr_bvh::WideBvh<N>,
+    boxes: &[Aabb],
+    tris: &[[Vec3; 3]],
+    what: &str,
+) -> usize
+where
+    phr_bvh::wide::Lanes<N>: phr_bvh::wide::Width<N>,
+{
+    wide.validate(boxes).unwrap_or_else(|e| panic!("{what}: {e}"));
+    let packed = phr_bvh::PackedTriangles::new(&wide.prim_indices, tris);
+    let bounds = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(*b));
+    let mut rng = Rng::new(tris.len() as u64);
+    for (i, ray) in random_rays(bounds, 100, &mut rng).iter().enumerate() {
+        let hit = wide.closest_triangle(&packed, ray).map(|(p, h)| (h.t, p));
+        assert_eq!(hit, brute_force(tris, ray), "{what}: ray {i} {ray:?}");
+    }
+    wide.leaf_count()
+}
+
+/// Runs `build` (which checks its tree) on pools of 1 and 2 threads and asserts that both
+/// trees are laid out the same.
+pub fn assert_same_on_1_and_2_threads<const N: usize>(build: impl Fn(usize) -> phr_bvh::WideBvh<N> + Sync) {
+    let trees: Vec<_> = [1, 2]
+        .into_iter()
+        .map(|threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| build(threads))
+        })
+        .collect();
+    assert_eq!(trees[0].nodes, trees[1].nodes, "the layout depends on the thread count");
+    assert_eq!(trees[0].prim_indices, trees[1].prim_indices);
+}

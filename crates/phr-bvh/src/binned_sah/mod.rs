@@ -16,6 +16,9 @@ use crate::topdown::{assemble, Built, Piece};
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
+mod wide;
+pub use wide::build_binned_sah_wide;
+
 /// Above this many primitives a node's children are built as separate rayon tasks.
 const PARALLEL_GRAIN: usize = 1 << 12;
 /// Above this many primitives a node's binning itself runs in parallel.
@@ -24,8 +27,10 @@ pub const MAX_BINS: usize = 32;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BinnedSahOptions {
-    /// Bins per axis (2 to 32; 16 to 32 is the usual choice). Nodes with fewer primitives
-    /// than bins use one bin per primitive (at least 4): as good, and much cheaper.
+    /// Bins per axis at most (2 to 32; 16 to 32 is the usual choice). A node of `n`
+    /// primitives uses `4 + n / 20` bins if that is fewer, Embree's rule: small nodes bin
+    /// and sweep far less for nearly the same trees (dragon: 13 % faster, SAH cost +0.5 %;
+    /// Sponza −1.2 %, Conference +0.5 %; it was one bin per primitive below 32).
     pub bins: usize,
     pub leaf: LeafPolicy,
 }
@@ -92,6 +97,17 @@ impl Bounds {
         self.c_hi = self.c_hi.max(c);
     }
 
+    /// Adds `r` if `yes`, without a branch.
+    #[inline(always)]
+    fn add_if(&mut self, r: &PrimRef, yes: bool) {
+        let mask = glam::BVec4A::splat(yes);
+        let c = r.centre2();
+        self.lo = self.lo.min(Vec4::select(mask, r.lo, Vec4::INFINITY));
+        self.hi = self.hi.max(Vec4::select(mask, r.hi, Vec4::NEG_INFINITY));
+        self.c_lo = self.c_lo.min(Vec4::select(mask, c, Vec4::INFINITY));
+        self.c_hi = self.c_hi.max(Vec4::select(mask, c, Vec4::NEG_INFINITY));
+    }
+
     fn merge(mut self, o: Bounds) -> Bounds {
         self.lo = self.lo.min(o.lo);
         self.hi = self.hi.max(o.hi);
@@ -155,6 +171,10 @@ impl Bin {
 struct Bins([[Bin; MAX_BINS]; 3]);
 
 impl Bins {
+    fn boxed() -> Box<Bins> {
+        Box::new(Bins([[Bin::EMPTY; MAX_BINS]; 3]))
+    }
+
     fn merge(&mut self, o: &Bins) {
         for (mine, theirs) in self.0.iter_mut().flatten().zip(o.0.iter().flatten()) {
             mine.lo = mine.lo.min(theirs.lo);
@@ -206,7 +226,7 @@ impl Binner {
             }
         };
         if refs.len() > PARALLEL_BINNING {
-            let empty = || Box::new(Bins([[Bin::EMPTY; MAX_BINS]; 3]));
+            let empty = Bins::boxed;
             let merged = refs
                 .par_chunks(PARALLEL_BINNING / 4)
                 .map(|chunk| {
@@ -260,7 +280,7 @@ impl Ctx {
             // by count if we must.
             return if self.leaf.must_split(n as u32) { self.median_split(refs, extent) } else { Decision::Leaf };
         }
-        let nb = self.bins.min(n.max(4));
+        let nb = self.bins.min(4 + n / 20);
         let scale = Vec3::select(extent.cmpgt(Vec3::ZERO), Vec3::splat(nb as f32) / extent, Vec3::ZERO);
         let binner = Binner { origin: bounds.c_lo, scale: scale.extend(0.0), last: (nb - 1) as f32 };
         binner.fill(refs, nb, bins);
@@ -313,7 +333,7 @@ impl Ctx {
             self.build_piece(&mut piece, refs, bounds, depth);
             return Built::Piece(piece);
         }
-        let mut bins = Box::new(Bins([[Bin::EMPTY; MAX_BINS]; 3]));
+        let mut bins = Bins::boxed();
         match self.decide(refs, &bounds, depth, &mut bins) {
             Decision::Leaf => {
                 let mut piece = Piece::new();
@@ -329,7 +349,7 @@ impl Ctx {
     }
 
     fn build_piece(&self, piece: &mut Piece, refs: &mut [PrimRef], bounds: Bounds, depth: u32) {
-        let mut bins = Box::new(Bins([[Bin::EMPTY; MAX_BINS]; 3]));
+        let mut bins = Bins::boxed();
         let mut stack = vec![(refs, bounds, 0u32, depth)];
         while let Some((refs, bounds, slot, depth)) = stack.pop() {
             match self.decide(refs, &bounds, depth, &mut bins) {
@@ -348,18 +368,21 @@ impl Ctx {
 
 /// Moves the references for which `left` holds to the front, in place (order within the
 /// sides does not matter for the tree), gathering both sides' bounds on the way.
+///
+/// Branch-free (Lomuto's scheme with the swap always made): the sides of consecutive
+/// references are close to random, and the branchy two-pointer scan mispredicted on most
+/// of them; it was 28 % of the dragon's build.
 fn partition(refs: &mut [PrimRef], left: impl Fn(&PrimRef) -> bool) -> Decision {
     let (mut lb, mut rb) = (Bounds::EMPTY, Bounds::EMPTY);
-    let (mut i, mut j) = (0usize, refs.len());
-    while i < j {
-        if left(&refs[i]) {
-            lb.add(&refs[i]);
-            i += 1;
-        } else {
-            j -= 1;
-            refs.swap(i, j);
-            rb.add(&refs[j]);
-        }
+    let mut k = 0usize;
+    for i in 0..refs.len() {
+        let r = refs[i];
+        let is_left = left(&r);
+        refs[i] = refs[k];
+        refs[k] = r;
+        k += is_left as usize;
+        lb.add_if(&r, is_left);
+        rb.add_if(&r, !is_left);
     }
-    Decision::Split(i, lb, rb)
+    Decision::Split(k, lb, rb)
 }
