@@ -1,4 +1,5 @@
-//! `phr bench-build`: every builder on every mesh of the shared scenes, with 1 and 2 threads
+//! `phr bench-build`: every builder on every mesh of the shared scenes (or on the scenes
+//! given), with 1 and 2 threads
 //! (or the lists given): build time (the auxiliary LBVH and PHR shown apart), SAH cost with the
 //! constants (1, 1) and the thesis's (2, 1), PHR's `Σ |cut|`, and closest-hit throughput of
 //! one fixed ray set per mesh, as a table and a CSV; native Embree's build next to them
@@ -9,13 +10,17 @@ use clap::Args;
 use phr_bench::build_bench::{embree_cells, measure_builder, table, write_csv};
 use phr_bench::embree_build::measure_embree_build;
 use phr_bench::rays::RaySet;
-use phr_bench::suite::{open_mesh, select, shared_scenes_dir, SHARED_MESHES};
+use phr_bench::suite::{open_mesh, open_scene, select, shared_scenes_dir, SHARED_MESHES};
+use phr_render::geometry::Geometry;
 use phr_bvh::Builder;
 use phr_render::camera::Camera;
 use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct BenchBuildArgs {
+    /// Scenes to measure instead of the shared meshes: scene files, meshes, or names of
+    /// scenes/suite (`dragons8`: 7M triangles).
+    pub scene: Vec<String>,
     /// The shared scenes folder (default: found above the current directory).
     #[arg(long)]
     pub scenes: Option<PathBuf>,
@@ -47,18 +52,28 @@ pub struct BenchBuildArgs {
 }
 
 pub fn run(args: &BenchBuildArgs) -> Result<()> {
-    let dir = shared_scenes_dir(args.scenes.as_deref())?;
     if args.repeats == 0 || args.threads.contains(&0) {
         bail!("--repeats and --threads must be at least 1");
     }
     // The branching factor applies to the PHR builders; the others stay binary.
     let builders: Vec<Builder> = args.builders.iter().map(|b| b.with_branching(args.branching).unwrap_or(*b)).collect();
-    let meshes = select(SHARED_MESHES, &args.only);
+    let meshes: Vec<String> = if args.scene.is_empty() {
+        select(SHARED_MESHES, &args.only).into_iter().map(String::from).collect()
+    } else {
+        args.scene.clone()
+    };
+    let dir = if args.scene.is_empty() { Some(shared_scenes_dir(args.scenes.as_deref())?) } else { None };
     let progress = crate::progress::bar((meshes.len() * args.threads.len() * builders.len()) as u64);
     let mut rows = Vec::new();
     let mut skipped = None;
-    for name in meshes {
-        let (mut geometry, scene) = open_mesh(&dir, name)?;
+    for name in &meshes {
+        let (mut geometry, scene) = match &dir {
+            Some(dir) => open_mesh(dir, name)?,
+            None => {
+                let scene = open_scene(name)?;
+                (Geometry::new(&scene), scene)
+            }
+        };
         let camera = Camera::new(&scene.framing_camera(), args.res, args.res);
         geometry.build(&Builder::default());
         let rays = RaySet::new(&geometry, &camera, args.res);
