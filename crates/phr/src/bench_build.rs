@@ -11,9 +11,9 @@ use phr_bench::build_bench::{embree_cells, measure_builder, table, write_csv};
 use phr_bench::embree_build::measure_embree_build;
 use phr_bench::rays::RaySet;
 use phr_bench::suite::{open_mesh, open_scene, select, shared_scenes_dir, SHARED_MESHES};
-use phr_render::geometry::Geometry;
 use phr_bvh::Builder;
 use phr_render::camera::Camera;
+use phr_render::geometry::Geometry;
 use std::path::PathBuf;
 
 #[derive(Args)]

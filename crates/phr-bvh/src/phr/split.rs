@@ -12,6 +12,7 @@
 use super::cut::{node_key, CutNode};
 use super::CutWeight;
 use crate::aabb::Aabb;
+use glam::Vec3A;
 
 /// The chosen split of a cut slice: after [`best_split`] the slice is sorted along the split
 /// axis and `left_len` nodes go left.
@@ -28,6 +29,8 @@ pub struct SplitScratch {
     order: Vec<u64>,
     best_order: Vec<u64>,
     reordered: Vec<CutNode>,
+    boxes: Vec<(Vec3A, Vec3A)>,
+    weights: Vec<f32>,
 }
 
 /// Finds the best full-sweep split of `cut` (at least two nodes) over the three axes and
@@ -45,32 +48,36 @@ pub fn best_split(cut: &mut [CutNode], weight: CutWeight, scratch: &mut SplitScr
     if centres_coincide(cut) {
         return median_split(cut);
     }
-    let total_weight: f32 = cut.iter().map(|n| weight.of(n.prims)).sum();
+    // The boxes as SIMD vectors and the weights, read once for the three axes.
+    scratch.boxes.clear();
+    scratch.boxes.extend(cut.iter().map(|n| (Vec3A::from(n.bounds.min), Vec3A::from(n.bounds.max))));
+    scratch.weights.clear();
+    scratch.weights.extend(cut.iter().map(|n| weight.of(n.prims)));
+    let total_weight: f32 = scratch.weights.iter().sum();
     scratch.right_area.resize(m, 0.0);
     let mut best = (f32::INFINITY, m / 2);
     let mut found = false;
     for axis in 0..3 {
         scratch.order.clear();
         scratch.order.extend(
-            cut.iter()
-                .enumerate()
-                .map(|(i, n)| (ordered_bits(n.bounds.min[axis] + n.bounds.max[axis]) << 32) | i as u64),
+            scratch.boxes.iter().enumerate().map(|(i, (lo, hi))| (ordered_bits(lo[axis] + hi[axis]) << 32) | i as u64),
         );
         scratch.order.sort_unstable();
-        let order = &scratch.order;
-        let at = |k: usize| &cut[(order[k] & 0xffff_ffff) as usize];
-        let mut acc = Aabb::EMPTY;
+        let (order, boxes, weights) = (&scratch.order, &scratch.boxes, &scratch.weights);
+        let index = |k: usize| (order[k] & 0xffff_ffff) as usize;
+        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
         for k in (1..m).rev() {
-            acc = acc.union(at(k).bounds);
-            scratch.right_area[k] = acc.surface_area();
+            let b = &boxes[index(k)];
+            (lo, hi) = (lo.min(b.0), hi.max(b.1));
+            scratch.right_area[k] = area(lo, hi);
         }
-        let (mut left, mut left_weight) = (Aabb::EMPTY, 0.0);
+        let (mut lo, mut hi, mut left_weight) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY, 0.0);
         let mut improved = false;
         for k in 1..m {
-            let n = at(k - 1);
-            left = left.union(n.bounds);
-            left_weight += weight.of(n.prims);
-            let cost = left.surface_area() * left_weight + scratch.right_area[k] * (total_weight - left_weight);
+            let i = index(k - 1);
+            (lo, hi) = (lo.min(boxes[i].0), hi.max(boxes[i].1));
+            left_weight += weights[i];
+            let cost = area(lo, hi) * left_weight + scratch.right_area[k] * (total_weight - left_weight);
             if cost < best.0 {
                 best = (cost, k);
                 improved = true;
@@ -112,6 +119,14 @@ pub fn median_split(cut: &mut [CutNode]) -> CutSplit {
         left_len += 1;
     }
     CutSplit { left_len, area_count: side_cost(&cut[..left_len]) + side_cost(&cut[left_len..]) }
+}
+
+/// The surface area of the non-empty box `lo..hi`, in SIMD registers (the sweeps' boxes: the
+/// scalar `Aabb` form was most of their time).
+#[inline(always)]
+fn area(lo: Vec3A, hi: Vec3A) -> f32 {
+    let e = hi - lo;
+    2.0 * e.dot(Vec3A::new(e.y, e.z, e.x))
 }
 
 /// `A · n` of one side: its box's area times its primitives.
