@@ -62,7 +62,7 @@ pub fn best_split(cut: &mut [CutNode], weight: CutWeight, scratch: &mut SplitScr
         scratch.order.extend(
             scratch.boxes.iter().enumerate().map(|(i, (lo, hi))| (ordered_bits(lo[axis] + hi[axis]) << 32) | i as u64),
         );
-        scratch.order.sort_unstable();
+        sort_keys(&mut scratch.order);
         let (order, boxes, weights) = (&scratch.order, &scratch.boxes, &scratch.weights);
         let index = |k: usize| (order[k] & 0xffff_ffff) as usize;
         let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
@@ -121,6 +121,81 @@ pub fn median_split(cut: &mut [CutNode]) -> CutSplit {
     CutSplit { left_len, area_count: side_cost(&cut[..left_len]) + side_cost(&cut[left_len..]) }
 }
 
+/// Sorts distinct keys: small sets through a sorting network (Batcher's odd-even merge sort,
+/// padded to 8 or 16 keys with `u64::MAX`), whose compare-exchanges are branch-free, where
+/// insertion sort's comparisons mispredicted; larger ones with `sort_unstable`.
+fn sort_keys(keys: &mut Vec<u64>) {
+    fn network<const N: usize, const K: usize>(keys: &mut Vec<u64>, pairs: &[(u8, u8); K]) {
+        let m = keys.len();
+        keys.resize(N, u64::MAX);
+        let a: &mut [u64; N] = (&mut keys[..]).try_into().expect("resized to N");
+        for &(i, j) in pairs {
+            let (x, y) = (a[i as usize], a[j as usize]);
+            (a[i as usize], a[j as usize]) = (x.min(y), x.max(y));
+        }
+        keys.truncate(m);
+    }
+    match keys.len() {
+        0..=8 => network::<8, { batcher_len(8) }>(keys, &const { batcher_pairs::<{ batcher_len(8) }>(8) }),
+        9..=16 => network::<16, { batcher_len(16) }>(keys, &const { batcher_pairs::<{ batcher_len(16) }>(16) }),
+        _ => keys.sort_unstable(),
+    }
+}
+
+/// The compare-exchange pairs of Batcher's odd-even merge sort of `n` (a power of two)
+/// inputs, in order; `K` of them ([`batcher_len`]).
+const fn batcher_pairs<const K: usize>(n: usize) -> [(u8, u8); K] {
+    let mut pairs = [(0u8, 0u8); K];
+    let mut count = 0;
+    let mut p = 1;
+    while p < n {
+        let mut k = p;
+        while k >= 1 {
+            let mut j = k % p;
+            while j + k < n {
+                let mut i = 0;
+                while i < k && i + j + k < n {
+                    if (i + j) / (2 * p) == (i + j + k) / (2 * p) {
+                        pairs[count] = ((i + j) as u8, (i + j + k) as u8);
+                        count += 1;
+                    }
+                    i += 1;
+                }
+                j += 2 * k;
+            }
+            k /= 2;
+        }
+        p *= 2;
+    }
+    assert!(count == K, "K must be batcher_len(n)");
+    pairs
+}
+
+/// The number of compare-exchanges of [`batcher_pairs`].
+const fn batcher_len(n: usize) -> usize {
+    let mut count = 0;
+    let mut p = 1;
+    while p < n {
+        let mut k = p;
+        while k >= 1 {
+            let mut j = k % p;
+            while j + k < n {
+                let mut i = 0;
+                while i < k && i + j + k < n {
+                    if (i + j) / (2 * p) == (i + j + k) / (2 * p) {
+                        count += 1;
+                    }
+                    i += 1;
+                }
+                j += 2 * k;
+            }
+            k /= 2;
+        }
+        p *= 2;
+    }
+    count
+}
+
 /// The surface area of the non-empty box `lo..hi`, in SIMD registers (the sweeps' boxes: the
 /// scalar `Aabb` form was most of their time).
 #[inline(always)]
@@ -147,4 +222,33 @@ fn centres_coincide(cut: &[CutNode]) -> bool {
 fn ordered_bits(x: f32) -> u64 {
     let b = x.to_bits();
     (if b & 0x8000_0000 != 0 { !b } else { b | 0x8000_0000 }) as u64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_networks_sort_like_sort_unstable() {
+        assert_eq!(batcher_len(8), 19);
+        assert_eq!(batcher_len(16), 63);
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for m in 0..40 {
+            for _ in 0..200 {
+                // Distinct keys, as best_split's (index in the low bits), some high bits equal.
+                let mut keys: Vec<u64> = (0..m)
+                    .map(|i| {
+                        state ^= state << 13;
+                        state ^= state >> 7;
+                        state ^= state << 17;
+                        ((state % 5) << 32) | i as u64
+                    })
+                    .collect();
+                let mut expected = keys.clone();
+                expected.sort_unstable();
+                sort_keys(&mut keys);
+                assert_eq!(keys, expected, "{m} keys");
+            }
+        }
+    }
 }
