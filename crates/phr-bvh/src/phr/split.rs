@@ -142,10 +142,13 @@ fn sort_keys(keys: &mut Vec<u64>) {
     }
 }
 
-/// The compare-exchange pairs of Batcher's odd-even merge sort of `n` (a power of two)
-/// inputs, in order; `K` of them ([`batcher_len`]).
-const fn batcher_pairs<const K: usize>(n: usize) -> [(u8, u8); K] {
-    let mut pairs = [(0u8, 0u8); K];
+/// Most compare-exchanges [`batcher`] makes (those of 16 inputs).
+const BATCHER_MAX: usize = 63;
+
+/// The compare-exchange pairs of Batcher's odd-even merge sort of `n` inputs (a power of two,
+/// at most 16), in order, and their number.
+const fn batcher(n: usize) -> ([(u8, u8); BATCHER_MAX], usize) {
+    let mut pairs = [(0u8, 0u8); BATCHER_MAX];
     let mut count = 0;
     let mut p = 1;
     while p < n {
@@ -167,33 +170,24 @@ const fn batcher_pairs<const K: usize>(n: usize) -> [(u8, u8); K] {
         }
         p *= 2;
     }
+    (pairs, count)
+}
+
+/// The `K` ([`batcher_len`]) compare-exchange pairs of [`batcher`]`(n)`.
+const fn batcher_pairs<const K: usize>(n: usize) -> [(u8, u8); K] {
+    let (all, count) = batcher(n);
     assert!(count == K, "K must be batcher_len(n)");
+    let mut pairs = [(0u8, 0u8); K];
+    let mut i = 0;
+    while i < K {
+        pairs[i] = all[i];
+        i += 1;
+    }
     pairs
 }
 
-/// The number of compare-exchanges of [`batcher_pairs`].
 const fn batcher_len(n: usize) -> usize {
-    let mut count = 0;
-    let mut p = 1;
-    while p < n {
-        let mut k = p;
-        while k >= 1 {
-            let mut j = k % p;
-            while j + k < n {
-                let mut i = 0;
-                while i < k && i + j + k < n {
-                    if (i + j) / (2 * p) == (i + j + k) / (2 * p) {
-                        count += 1;
-                    }
-                    i += 1;
-                }
-                j += 2 * k;
-            }
-            k /= 2;
-        }
-        p *= 2;
-    }
-    count
+    batcher(n).1
 }
 
 /// The surface area of the non-empty box `lo..hi`, in SIMD registers (the sweeps' boxes: the
