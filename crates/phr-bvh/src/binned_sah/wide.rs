@@ -18,7 +18,7 @@
 
 use super::{BinnedSahOptions, Bins, Bounds, Ctx, Decision, PrimRef, MAX_BINS, MAX_PRIMS};
 use crate::aabb::Aabb;
-use crate::wide::pieces::{assemble, pad_to_block, place_leaf, WideBuilt, WidePiece};
+use crate::wide::pieces::{assemble, build_piece, place_leaf, WideBuilt, WidePiece};
 use crate::wide::{CollapseOptions, WideBvh, WideNode};
 use rayon::prelude::*;
 
@@ -296,27 +296,19 @@ impl WideCtx {
         known: &[Known],
         depth: usize,
     ) -> WidePiece<N> {
-        let mut piece = WidePiece::new();
         let mut bins = Bins::boxed();
         let (mut slots, mut splits) = ([root; N], [None; N]);
-        // (slot whose halves fill the wide node, its split, wide node, stack depth above it)
-        let mut work = vec![(root, split, 0usize, depth)];
-        while let Some((slot, split, w, depth)) = work.pop() {
-            let k = self.slots(refs, (slot, split), &mut slots, &mut splits, known, &mut bins);
-            let depth = depth + k - 1;
-            piece.bound = piece.bound.max(depth);
-            let pending = work.len();
-            let nodes = &mut piece.nodes;
-            let node = self.node(refs, &slots[..k], &mut piece.prims, |i| {
-                work.push((slots[i], splits[i], nodes.len(), depth));
-                nodes.push(WideNode::<N>::EMPTY);
-                (nodes.len() - 1) as u32
-            });
+        // Items: a slot whose halves fill a wide node, and its split.
+        build_piece(
+            (root, split),
+            depth,
+            self.align,
+            |item, prims, children| {
+                let k = self.slots(refs, item, &mut slots, &mut splits, known, &mut bins);
+                (self.node(refs, &slots[..k], prims, |i| children.push((slots[i], splits[i]))), k)
+            },
             // The first slot's subtree is built first.
-            work[pending..].reverse();
-            piece.nodes[w] = node;
-        }
-        pad_to_block(&mut piece.prims, self.align);
-        piece
+            |pushed| pushed.reverse(),
+        )
     }
 }

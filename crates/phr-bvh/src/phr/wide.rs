@@ -22,7 +22,7 @@
 use super::cut::{cut_bounds, cut_prims, CutNode};
 use super::{AuxTree, Ctx, PhrOptions, PhrStats, Ranges, Scratch, THRESHOLD_TABLE};
 use crate::aabb::Aabb;
-use crate::wide::pieces::{assemble, pad_to_block, place_leaf, WideBuilt, WidePiece};
+use crate::wide::pieces::{assemble, build_piece, place_leaf, WideBuilt, WidePiece};
 use crate::wide::{CollapseOptions, WideBvh, WideNode};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -267,26 +267,20 @@ impl WideCtx<'_, '_> {
         depth: usize,
         mut scratch: WideScratch,
     ) -> WidePiece<N> {
-        let mut piece = WidePiece::new();
         let mut slots = [Slot::default(); N];
-        // (slot whose children fill the wide node, wide node, stack depth above it)
-        let mut work = vec![(root, 0usize, depth)];
-        while let Some((slot, w, depth)) = work.pop() {
-            pool.truncate(slot.end as usize);
-            let k = self.slots(&mut pool, slot, &mut slots, &mut scratch);
-            let depth = depth + k - 1;
-            piece.bound = piece.bound.max(depth);
-            let pending = work.len();
-            let nodes = &mut piece.nodes;
-            let node = self.node(&pool, &slots[..k], &mut piece.prims, &mut scratch, |_, s| {
-                work.push((*s, nodes.len(), depth));
-                nodes.push(WideNode::<N>::EMPTY);
-                (nodes.len() - 1) as u32
-            });
-            work[pending..].sort_unstable_by_key(|(s, _, _)| s.start);
-            piece.nodes[w] = node;
-        }
-        pad_to_block(&mut piece.prims, self.align);
+        // Items: a slot whose children fill a wide node.
+        let piece = build_piece(
+            root,
+            depth,
+            self.align,
+            |slot, prims, children| {
+                pool.truncate(slot.end as usize);
+                let k = self.slots(&mut pool, slot, &mut slots, &mut scratch);
+                (self.node(&pool, &slots[..k], prims, &mut scratch, |_, s| children.push(*s)), k)
+            },
+            // The slot highest in the pool is built next: everything above its cut is dead.
+            |pushed| pushed.sort_unstable_by_key(|(s, _, _)| s.start),
+        );
         self.ctx.build_cost.fetch_add(scratch.phr.build_cost, Ordering::Relaxed);
         piece
     }

@@ -33,7 +33,7 @@
 //! a boundary of the packed triangles' 4-lane blocks ([`CollapseOptions::leaf_align`]; the
 //! gaps hold [`super::PAD`]), so it is one SIMD test; small leaves share blocks.
 
-use super::pieces::{assemble, pad_to_block, place_leaf, WideBuilt, WidePiece};
+use super::pieces::{assemble, build_piece, place_leaf, WideBuilt, WidePiece};
 use super::WideNode;
 use crate::aabb::Aabb;
 use crate::node::Bvh;
@@ -359,28 +359,22 @@ impl Emit<'_> {
     /// Collapses the subtree at `b` sequentially, depth first (children of a node stored
     /// consecutively).
     fn piece<const N: usize>(&self, b: u32, depth: usize) -> WidePiece<N> {
-        let mut piece = WidePiece::new();
         let mut stack = Vec::new();
-        // (binary node whose children fill the wide node, wide node, stack depth above it)
-        let mut work = vec![(b, 0usize, depth)];
-        while let Some((b, w, depth)) = work.pop() {
-            let (kids, k) = self.slots::<N>(b);
-            let depth = depth + k - 1;
-            piece.bound = piece.bound.max(depth);
-            let pending = work.len();
-            let nodes = &mut piece.nodes;
-            let node = self.node(&kids[..k], &mut piece.prims, &mut stack, |_, kid| {
-                self.prefetch_children(kid);
-                work.push((kid, nodes.len(), depth));
-                nodes.push(WideNode::<N>::EMPTY);
-                (nodes.len() - 1) as u32
-            });
+        build_piece(
+            b,
+            depth,
+            self.align,
+            |b, prims, children| {
+                let (kids, k) = self.slots::<N>(b);
+                let node = self.node(&kids[..k], prims, &mut stack, |_, kid| {
+                    self.prefetch_children(kid);
+                    children.push(kid)
+                });
+                (node, k)
+            },
             // The first interior slot is collapsed next.
-            work[pending..].reverse();
-            piece.nodes[w] = node;
-        }
-        pad_to_block(&mut piece.prims, self.align);
-        piece
+            |pushed| pushed.reverse(),
+        )
     }
 }
 

@@ -39,6 +39,52 @@ pub(crate) fn pad_to_block(prims: &mut Vec<u32>, block: usize) {
     prims.resize(prims.len().next_multiple_of(block), PAD);
 }
 
+/// Where the wide node being filled by [`build_piece`] puts its interior slots' subtrees.
+pub(crate) struct Children<'a, W, const N: usize> {
+    /// Each interior slot's item, the node it fills and the stack depth above it (set when
+    /// the node is made).
+    work: &'a mut Vec<(W, usize, usize)>,
+    nodes: &'a mut Vec<WideNode<N>>,
+}
+
+impl<W, const N: usize> Children<'_, W, N> {
+    /// Reserves the node of an interior slot whose subtree `item` makes; returns its index.
+    #[inline]
+    pub fn push(&mut self, item: W) -> u32 {
+        self.work.push((item, self.nodes.len(), 0));
+        self.nodes.push(WideNode::<N>::EMPTY);
+        (self.nodes.len() - 1) as u32
+    }
+}
+
+/// Builds a subtree sequentially into a piece, depth first, the children of a node stored
+/// consecutively: what the collapse and the direct wide builders share below their parallel
+/// top. `fill(item, prims, children)` makes an item's wide node, emitting its leaves into
+/// `prims` and [`Children::push`]ing each interior slot's item, and returns the node and its
+/// number of slots (the stack depth grows by that less one). `order` arranges one node's
+/// pushed items, of which the last is built next.
+pub(crate) fn build_piece<W, const N: usize>(
+    root: W,
+    depth: usize,
+    align: usize,
+    mut fill: impl FnMut(W, &mut Vec<u32>, &mut Children<'_, W, N>) -> (WideNode<N>, usize),
+    order: impl Fn(&mut [(W, usize, usize)]),
+) -> WidePiece<N> {
+    let mut piece = WidePiece::new();
+    let mut work = vec![(root, 0usize, depth)];
+    while let Some((item, w, depth)) = work.pop() {
+        let pending = work.len();
+        let (node, k) = fill(item, &mut piece.prims, &mut Children { work: &mut work, nodes: &mut piece.nodes });
+        let depth = depth + k - 1;
+        piece.bound = piece.bound.max(depth);
+        work[pending..].iter_mut().for_each(|(_, _, d)| *d = depth);
+        order(&mut work[pending..]);
+        piece.nodes[w] = node;
+    }
+    pad_to_block(&mut piece.prims, align);
+    piece
+}
+
 /// Wide nodes and leaf primitives of one subtree, with local indices: its root is node 0,
 /// interior slots index `nodes`, leaf slots index `prims` (whose length is a whole number of
 /// blocks, so the piece can be placed at any block boundary). `bound` is the stack bound
