@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
-"""Writes bunnies_1000.json (and bunnies_1.json): a field of Stanford bunnies, each a copy
-(an instance) of one mesh, on a floor under a sky. The scene for the instancing goal of the
-dynamic-scenes issue: 1,000 copies of the 69,451-triangle bunny place 69.5M triangles, stored
-once. bunnies_1.json is the same scene with the first copy only, to compare memory and load time.
+"""Writes bunnies_1000.json (and bunnies_1.json, bunnies_1000_moving.json): a field of
+Stanford bunnies, each a copy (an instance) of one mesh, on a floor under a sky. The scene for
+the instancing goal of the dynamic-scenes issue: 1,000 copies of the 69,451-triangle bunny
+place 69.5M triangles, stored once. bunnies_1.json is the same scene with the first copy only,
+to compare memory and load time. In bunnies_1000_moving.json every bunny turns about its own
+centre and sways: only the copies' transforms change, so a frame rebuilds only their top level.
 
 Run: python3 make_bunnies.py  (no dependencies; the outputs are committed).
 """
@@ -30,11 +32,13 @@ def placements(count):
     return out[:count]
 
 
-def scene(count):
+def scene(count, moving=False):
     width = COLUMNS * SPACING + 4
     depth = ROWS * SPACING + 4
     return {
-        "description": f"{count} copies of the Stanford bunny (69,451 triangles each, one tree) on a floor under a sky. Written by make_bunnies.py.",
+        "description": f"{count} copies of the Stanford bunny (69,451 triangles each, one tree) on a floor under a sky"
+        + (", each turning and swaying" if moving else "")
+        + ". Written by make_bunnies.py.",
         "width": 512,
         "height": 288,
         "spp": 64,
@@ -61,13 +65,18 @@ def scene(count):
                 "file": "{scenes}/bunny/bun_zipper.ply",
                 "material": "clay",
                 "instances": placements(count),
-            },
+            }
+            | ({"animate": [
+                {"type": "rotate", "axis": [0, 1, 0], "degrees_per_second": 60},
+                {"type": "oscillate", "amplitude": [0.25, 0, 0.15], "period": 1.5},
+            ]} if moving else {}),
         ],
     }
 
 
 if __name__ == "__main__":
-    for count in (1000, 1):
-        with open(f"bunnies_{count}.json", "w") as f:
-            json.dump(scene(count), f, indent=1)
+    for name, count, moving in (("bunnies_1000", 1000, False), ("bunnies_1", 1, False),
+                                ("bunnies_1000_moving", 1000, True)):
+        with open(f"{name}.json", "w") as f:
+            json.dump(scene(count, moving), f, indent=1)
             f.write("\n")

@@ -51,6 +51,16 @@ pub struct Animator {
     meshes: Vec<PosedMesh>,
     spheres: Vec<(usize, Vec3, Vec<Motion>)>,
     objects: Vec<ObjectRef>,
+    copies: Vec<MovingCopy>,
+}
+
+/// A moving copy of a mesh placed many times ([`crate::scene::InstancedMesh::motions`]): its
+/// number among the geometry's copies, its placement at rest and its motions in the world.
+/// Only its transform changes: the mesh's tree is shared and never refitted.
+struct MovingCopy {
+    copy: usize,
+    rest: Affine3A,
+    motions: Vec<Motion>,
 }
 
 /// An animated object's primitives (scene order, as in [`Geometry`]) and whether it moves
@@ -122,12 +132,37 @@ impl Animator {
             }
         }
         objects.extend((0..spheres.len()).map(ObjectRef::Sphere));
-        Self { meshes, spheres, objects }
+        let mut copies = Vec::new();
+        let mut copy = 0;
+        for instanced in &scene.instanced {
+            for placement in &instanced.copies {
+                if !instanced.motions.is_empty() {
+                    let motions = Motion::placed_by(&instanced.motions, placement.to_world);
+                    copies.push(MovingCopy { copy, rest: placement.to_world, motions });
+                }
+                copy += 1;
+            }
+        }
+        Self { meshes, spheres, objects, copies }
     }
 
     /// Whether anything moves at all.
     pub fn is_animated(&self) -> bool {
-        !self.meshes.is_empty() || !self.spheres.is_empty()
+        !self.meshes.is_empty() || !self.spheres.is_empty() || !self.copies.is_empty()
+    }
+
+    /// Places the moving copies of meshes placed many times where they are at time `t`
+    /// ([`Geometry::move_copies`]; every pose does).
+    pub fn place_copies(&self, geometry: &mut Geometry, t: f32) {
+        if self.copies.is_empty() {
+            return;
+        }
+        let moves: Vec<(usize, Affine3A)> = self
+            .copies
+            .iter()
+            .map(|c| (c.copy, Motion::affine_all(&c.motions, t).expect("copies move rigidly") * c.rest))
+            .collect();
+        geometry.move_copies(&moves);
     }
 
     /// Triangles that move (for statistics).
@@ -184,6 +219,7 @@ impl Animator {
                 mesh.pose(geometry, t);
             }
         }
+        self.place_copies(geometry, t);
     }
 
     /// Moves the geometry's triangles and spheres to time `t` (seconds) and recomputes the
@@ -196,6 +232,7 @@ impl Animator {
             geometry.spheres[*s].sphere.center = Motion::apply_all(motions, *centre, t);
         }
         geometry.update_boxes();
+        self.place_copies(geometry, t);
     }
 }
 

@@ -62,6 +62,21 @@ impl Motion {
     pub fn affine_all(motions: &[Motion], t: f32) -> Option<Affine3A> {
         motions.iter().try_fold(Affine3A::IDENTITY, |m, motion| Some(motion.affine(t)? * m))
     }
+
+    /// The motions of a copy placed by `to_world`: the same motions in the world, each
+    /// rotation about its pivot as the copy places it (so every copy turns about its own
+    /// centre, or its own point of the pivot given).
+    pub fn placed_by(motions: &[Motion], to_world: Affine3A) -> Vec<Motion> {
+        motions
+            .iter()
+            .map(|m| match m {
+                &Motion::Rotate { axis, pivot, degrees_per_second } => {
+                    Motion::Rotate { axis, pivot: to_world.transform_point3(pivot), degrees_per_second }
+                }
+                other => other.clone(),
+            })
+            .collect()
+    }
 }
 
 /// How keyframes are interpolated (glTF `sampler.interpolation`).

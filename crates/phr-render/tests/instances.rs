@@ -102,6 +102,39 @@ fn the_scene_file_keeps_one_mesh_per_instanced_object() {
     assert_eq!(stored as u64, n.iter().sum::<u64>());
 }
 
+/// Asserts that `actual` hits what `expected` hits on `rays`: distance, position, normal,
+/// side, material and texture coordinates (rays grazing an edge may fall on either side of it
+/// in two layouts: at most one in 200). Returns how many rays hit a copy in `actual`.
+fn assert_same_hits(expected: &Geometry, actual: &Geometry, rays: &[Ray], what: &str) -> usize {
+    let (mut differ, mut on_copies) = (0, 0);
+    for (i, ray) in rays.iter().enumerate() {
+        match (expected.intersect(ray), actual.intersect(ray)) {
+            (None, None) => {}
+            (Some(w), Some(h)) if close(w.t, h.t) => {
+                on_copies += usize::from(h.part & COPY != 0);
+                let (sw, sh) = (expected.surface_point(ray, &w), actual.surface_point(ray, &h));
+                assert!((sw.position - sh.position).length() < 1e-3, "{what}, ray {i}: position");
+                assert!(
+                    sw.normal.dot(sh.normal) > 0.9999,
+                    "{what}, ray {i}: normal {} vs {} (part {:x}, prim {}, t {})",
+                    sw.normal,
+                    sh.normal,
+                    h.part,
+                    h.prim,
+                    h.t
+                );
+                assert_eq!(sw.front, sh.front, "{what}, ray {i}: side");
+                assert_eq!(sw.material, sh.material, "{what}, ray {i}: material");
+                let (uw, uh) = (expected.uv(&w), actual.uv(&h));
+                assert!((uw - uh).length() < 1e-4, "{what}, ray {i}: uv {uw} vs {uh}");
+            }
+            _ => differ += 1,
+        }
+    }
+    assert!(differ <= rays.len() / 200, "{what}: {differ} of {} rays differ", rays.len());
+    on_copies
+}
+
 #[test]
 fn copies_hit_what_their_flattened_triangles_hit() {
     for builder in [Builder::PHR_FAST, "sbvh".parse().unwrap()] {
@@ -109,33 +142,7 @@ fn copies_hit_what_their_flattened_triangles_hit() {
         assert_eq!(copies.copy_count(), 12);
         assert_eq!(flat.copy_count(), 0);
         let all = rays(4000, 7);
-        let (mut differ, mut on_copies) = (0, 0);
-        for (i, ray) in all.iter().enumerate() {
-            match (flat.intersect(ray), copies.intersect(ray)) {
-                (None, None) => {}
-                (Some(w), Some(h)) if close(w.t, h.t) => {
-                    on_copies += usize::from(h.part & COPY != 0);
-                    let (sw, sh) = (flat.surface_point(ray, &w), copies.surface_point(ray, &h));
-                    assert!((sw.position - sh.position).length() < 1e-3, "{builder}, ray {i}: position");
-                    assert!(
-                        sw.normal.dot(sh.normal) > 0.9999,
-                        "{builder}, ray {i}: normal {} vs {} (part {:x}, prim {}, t {})",
-                        sw.normal,
-                        sh.normal,
-                        h.part,
-                        h.prim,
-                        h.t
-                    );
-                    assert_eq!(sw.front, sh.front, "{builder}, ray {i}: side");
-                    assert_eq!(sw.material, sh.material, "{builder}, ray {i}: material");
-                    let (uw, uh) = (flat.uv(&w), copies.uv(&h));
-                    assert!((uw - uh).length() < 1e-4, "{builder}, ray {i}: uv {uw} vs {uh}");
-                }
-                // Rays grazing an edge may fall on either side of it in the two layouts.
-                _ => differ += 1,
-            }
-        }
-        assert!(differ <= all.len() / 200, "{builder}: {differ} of {} rays differ", all.len());
+        let on_copies = assert_same_hits(&flat, &copies, &all, &builder.to_string());
         assert!(on_copies > all.len() / 10, "{builder}: only {on_copies} rays hit a copy");
         // The heatmap's counting traversal and the shadow queries agree with closest hits.
         for ray in &all[..500] {
@@ -204,9 +211,13 @@ fn the_scene_file_refuses_instances_it_cannot_place() {
     let e = error_of(&format!(r#"{{{triangle}, "material": "m", "instances": [{{"scale": [1, 0, 1]}}]}}"#));
     assert!(e.contains("transform 0 is not finite or cannot be inverted"), "{e}");
     let e = error_of(&format!(
+        r#"{{{triangle}, "material": "m", "instances": [{{}}], "animate": {{"type": "wave", "amplitude": 0.1, "wavelength": 1, "period": 1}}}}"#
+    ));
+    assert!(e.contains("copies can only move rigidly"), "{e}");
+    let e = error_of(&format!(
         r#"{{{triangle}, "material": "m", "instances": [{{}}], "animate": {{"type": "oscillate", "amplitude": [1, 0, 0], "period": 1}}}}"#
     ));
-    assert!(e.contains("cannot move"), "{e}");
+    assert_eq!(e, "", "copies may move rigidly");
     let e = error_of(r#"{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "m", "instances": [{}]}"#);
     assert!(e.contains("unknown key \"instances\""), "{e}");
 }
@@ -300,4 +311,85 @@ fn a_gltf_mesh_that_several_nodes_place_is_instanced() {
     assert_eq!(scene.instanced.len(), 1);
     assert_eq!(scene.instanced[0].mesh.triangles.len(), 4);
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The tetrahedron of [`moving_copies_hit_what_the_same_moving_objects_hit`].
+const TETRAHEDRON: &str = r#""type": "triangles", "material": "m",
+    "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0.6, 0.7, 0.6]],
+    "faces": [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 4, 3], [1, 2, 4], [2, 3, 4]]"#;
+
+/// A scene of a floor and `objects`.
+fn scene_of(objects: &str) -> Scene {
+    let text = format!(
+        r#"{{"materials": {{ "m": {{ "type": "lambertian", "albedo": 0.5 }} }},
+            "objects": [{{ "type": "quad", "Q": [-6, 0, -6], "u": [12, 0, 0], "v": [0, 0, 12], "material": "m" }}, {objects}]}}"#
+    );
+    parse_scene(&text, &scene_path()).unwrap()
+}
+
+/// Copies that move (the object's `animate`: a turn about each copy's own centre, a bob)
+/// against the same moving objects written one by one (each with its transform, and its
+/// pivot worked out here), and against the scene flattened: the same hits at several
+/// times, where only the copies' top level is rebuilt.
+#[test]
+fn moving_copies_hit_what_the_same_moving_objects_hit() {
+    let placements = [
+        r#"{ "translate": [-2, 0.5, 0] }"#,
+        r#"{ "scale": [1, 2, 0.5], "rotate": [0.3, 1, 0.2, 40], "translate": [1, 0.5, -1] }"#,
+        r#"{ "scale": [1, -1, 1], "translate": [2, 1.5, 2] }"#,
+    ];
+    let motions = |pivot: &str| {
+        format!(
+            r#"[{{ "type": "rotate", "axis": [0, 1, 0], "degrees_per_second": 90{pivot} }},
+                {{ "type": "oscillate", "amplitude": [0, 0.5, 0.2], "period": 2 }}]"#
+        )
+    };
+    let copies = scene_of(&format!(
+        r#"{{ {TETRAHEDRON}, "instances": [{}], "animate": {} }}"#,
+        placements.join(", "),
+        motions("")
+    ));
+    assert_eq!((copies.instanced.len(), copies.instanced[0].motions.len()), (1, 2));
+    // Each copy's pivot: the centre of the tetrahedron's box, (0.5, 0.5, 0.5), placed by it.
+    let centre = Vec3::splat(0.5);
+    let turn = glam::Quat::from_axis_angle(Vec3::new(0.3, 1.0, 0.2).normalize(), 40f32.to_radians());
+    let pivots = [
+        centre + Vec3::new(-2.0, 0.5, 0.0),
+        turn * (Vec3::new(1.0, 2.0, 0.5) * centre) + Vec3::new(1.0, 0.5, -1.0),
+        Vec3::new(1.0, -1.0, 1.0) * centre + Vec3::new(2.0, 1.5, 2.0),
+    ];
+    let objects: Vec<String> = placements
+        .iter()
+        .zip(pivots)
+        .map(|(p, c)| {
+            format!(
+                r#"{{ {TETRAHEDRON}, "transform": {p}, "animate": {} }}"#,
+                motions(&format!(r#", "pivot": [{}, {}, {}]"#, c.x, c.y, c.z))
+            )
+        })
+        .collect();
+    let one_by_one = scene_of(&objects.join(", "));
+    let flat = flattened(copies.clone());
+    assert_eq!(flat.animations.len(), 3, "each written-out copy moves");
+    let mut moving = Geometry::new(&copies);
+    moving.build(&Builder::PHR_FAST);
+    let mut animator = phr_render::animation::Animator::new(&copies);
+    assert!(animator.is_animated());
+    let all = rays(3000, 11);
+    let mut hits_before = None;
+    for t in [0.0, 0.7, 2.3] {
+        animator.pose(&mut moving, t);
+        for (what, other) in [("one by one", &one_by_one), ("flattened", &flat)] {
+            let mut expected = Geometry::new(other);
+            phr_render::animation::Animator::new(other).pose(&mut expected, t);
+            expected.build(&Builder::PHR_FAST);
+            let on_copies = assert_same_hits(&expected, &moving, &all, &format!("{what}, t {t}"));
+            assert!(on_copies > 20, "{what}, t {t}: only {on_copies} rays hit a copy");
+        }
+        let hits: Vec<Option<f32>> = all.iter().map(|r| moving.intersect(r).map(|h| h.t)).collect();
+        if t > 0.0 {
+            assert_ne!(Some(&hits), hits_before.as_ref(), "t {t}: the copies did not move");
+        }
+        hits_before = Some(hits);
+    }
 }

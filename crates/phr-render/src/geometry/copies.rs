@@ -11,7 +11,7 @@
 
 use super::{Hit, Part, TRIANGLE_OFFSET};
 use crate::scene::Scene;
-use glam::{Vec2, Vec3};
+use glam::{Affine3A, Vec2, Vec3};
 use phr_bvh::instance::{Instance, TopLevel};
 use phr_bvh::triangle::triangle_bounds;
 use phr_bvh::{Aabb, Builder, Ray};
@@ -86,6 +86,32 @@ impl Copies {
             .map(|(&m, placement)| self.meshes[m as usize].part.bounds_placed(placement))
             .collect();
         self.top.rebuild(std::mem::take(&mut self.placements), &boxes);
+    }
+
+    /// [`super::Geometry::move_copies`]: before [`Copies::build`] the placements change, after
+    /// it the top level is rebuilt over them.
+    pub fn place(&mut self, moves: &[(usize, Affine3A)]) {
+        if moves.is_empty() {
+            return;
+        }
+        let built = self.placements.is_empty();
+        let mut instances = if built { self.top.instances().to_vec() } else { std::mem::take(&mut self.placements) };
+        for &(k, to_world) in moves {
+            if let Some(instance) = Instance::new(to_world) {
+                instances[k] = instance;
+            }
+        }
+        if !built {
+            self.placements = instances;
+            return;
+        }
+        let boxes: Vec<Aabb> = self
+            .mesh_of
+            .iter()
+            .zip(&instances)
+            .map(|(&m, placement)| self.meshes[m as usize].part.bounds_placed(placement))
+            .collect();
+        self.top.rebuild(instances, &boxes);
     }
 
     /// The mesh tree and the placement of copy `copy`.

@@ -358,6 +358,13 @@ impl Geometry {
         start.elapsed()
     }
 
+    /// Places copies of meshes placed many times anew: `(k, to_world)` puts copy `k` there
+    /// (a transform that cannot be inverted leaves it where it was), and the top level over
+    /// the copies is rebuilt. Their meshes' trees stay as they are.
+    pub fn move_copies(&mut self, moves: &[(usize, Affine3A)]) {
+        self.copies.place(moves);
+    }
+
     /// Number of copies of meshes placed many times.
     pub fn copy_count(&self) -> usize {
         self.copies.len()

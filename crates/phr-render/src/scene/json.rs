@@ -570,8 +570,22 @@ impl SceneBuilder<'_> {
     fn instance(&mut self, i: usize, instances: &[TransformFile], meshes: usize) -> Result<(), LoadError> {
         let path = self.path;
         let bad = |what: String| LoadError::new(path, format!("object {i}: instances: {what}"));
-        if self.scene.animations.iter().any(|a| matches!(a.target, AnimationTarget::Mesh(m) if m >= meshes)) {
-            return Err(bad("an object with instances cannot move (animate, or a glTF animation)".into()));
+        // Its `animate` moves every copy, rigidly: a wave or a glTF animation would deform the
+        // one mesh they share.
+        let mut motions = Vec::new();
+        while let Some(k) =
+            self.scene.animations.iter().position(|a| matches!(a.target, AnimationTarget::Mesh(m) if m >= meshes))
+        {
+            match self.scene.animations.remove(k).animation {
+                Animation::Procedural(list) if motions.is_empty() && Motion::affine_all(&list, 0.0).is_some() => {
+                    motions = list
+                }
+                _ => {
+                    return Err(bad("copies can only move rigidly, all alike (animate: rotate, oscillate); \
+                         a wave or a glTF animation would deform the mesh they share"
+                        .into()))
+                }
+            }
         }
         if instances.is_empty() {
             return Err(bad("the list is empty: nothing would be placed".into()));
@@ -584,7 +598,7 @@ impl SceneBuilder<'_> {
                     .ok_or_else(|| bad(format!("transform {k} is not finite or cannot be inverted")))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let instanced = InstancedMesh { mesh: merge_meshes(self.scene.meshes.drain(meshes..)), copies };
+        let instanced = InstancedMesh { mesh: merge_meshes(self.scene.meshes.drain(meshes..)), copies, motions };
         if !instanced.mesh.triangle_material.iter().any(|&m| self.scene.written_out_for(m)) {
             self.scene.instanced.push(instanced);
             return Ok(());
@@ -596,7 +610,7 @@ impl SceneBuilder<'_> {
                  (emitters and masks are copied, not instanced)"
             )));
         }
-        self.scene.meshes.extend(instanced.written_out());
+        self.scene.write_out(instanced);
         Ok(())
     }
 

@@ -11,7 +11,7 @@ pub mod materials;
 
 use crate::camera::CameraDesc;
 use crate::material::Material;
-use crate::motion::ObjectAnimation;
+use crate::motion::{Animation, AnimationTarget, Motion, ObjectAnimation};
 use crate::texture::{AlphaMask, Texture};
 use glam::{Vec2, Vec3};
 use phr_bvh::instance::Instance;
@@ -79,6 +79,10 @@ pub struct InstancedMesh {
     pub mesh: Mesh,
     /// Object space to world space, one per copy; each is invertible and finite.
     pub copies: Vec<Instance>,
+    /// Rigid motions (rotations, oscillations; empty: the copies stand still) that every copy
+    /// makes in the world after its placement, turning about its own place of the pivot
+    /// ([`Motion::placed_by`]).
+    pub motions: Vec<Motion>,
 }
 
 impl InstancedMesh {
@@ -311,7 +315,19 @@ impl Scene {
     /// what needs each triangle where it is (moving every vertex, exporting triangles).
     pub fn flatten_instanced(&mut self) {
         for copied in std::mem::take(&mut self.instanced) {
-            self.meshes.extend(copied.written_out());
+            self.write_out(copied);
+        }
+    }
+
+    /// Adds every copy of `copied` as a mesh of its own, in the world, each with the
+    /// copies' motions as its animation.
+    pub fn write_out(&mut self, copied: InstancedMesh) {
+        for (mesh, copy) in copied.written_out().zip(&copied.copies) {
+            if !copied.motions.is_empty() {
+                let animation = Animation::Procedural(Motion::placed_by(&copied.motions, copy.to_world));
+                self.animations.push(ObjectAnimation { target: AnimationTarget::Mesh(self.meshes.len()), animation });
+            }
+            self.meshes.push(mesh);
         }
     }
 
@@ -350,7 +366,7 @@ impl Scene {
                 triangle_material: shared.triangle_group.iter().map(|&g| group_material[g as usize]).collect(),
                 uvs: shared.uvs.iter().map(|t| t.map(Vec2::from)).collect(),
             };
-            self.instanced.push(InstancedMesh { mesh, copies });
+            self.instanced.push(InstancedMesh { mesh, copies, motions: Vec::new() });
         }
         Ok(())
     }
