@@ -107,3 +107,59 @@ fn refitted_wide_trees_enclose_the_moved_primitives() {
         }
     }
 }
+
+/// The refit a deforming mesh runs every frame ([`phr_bvh::WideBvh::refit_packed`]): the
+/// leaves' boxes come from the triangles just packed in leaf order. Each leaf slot's box is
+/// exactly its own entries' box (lanes of neighbouring leaves in the same block masked out),
+/// widened by a relative 2⁻²³; each interior slot's is its child's union; the tree gives
+/// brute force's hits. Entries past `triangle_count` (a renderer's spheres) take the
+/// caller's boxes.
+#[test]
+fn trees_refitted_from_packed_triangles_hold_exactly_their_leaves() {
+    use phr_bvh::{Aabb, PackedTriangles, WideBvh};
+    let mut rng = Rng::new(10);
+    let rest = random_soup(5000, 1.0, &mut rng);
+    let others = 120;
+    let mut wide = WideBvh::<8>::default();
+    let boxes = triangle_boxes(&rest);
+    DynamicBvh::new(&boxes, PhrOptions::FAST).update_wide(&boxes, &mut wide);
+    let n_tris = rest.len() - others;
+    let widened = |b: Aabb| Aabb::new(b.min - b.min.abs() * f32::EPSILON, b.max + b.max.abs() * f32::EPSILON);
+    for frame in 1..6 {
+        let shift = |v: Vec3| v + Vec3::new(0.0, 0.3 * (4.0 * v.x + frame as f32).sin(), 0.1 * frame as f32);
+        let tris: Vec<[Vec3; 3]> = rest.iter().map(|t| t.map(shift)).collect();
+        // The triangles as the packed test sees them: v0, v0 + e1, v0 + e2.
+        let seen: Vec<[Vec3; 3]> = tris.iter().map(|&[a, b, c]| [a, a + (b - a), a + (c - a)]).collect();
+        let mut expected = triangle_boxes(&seen);
+        expected[n_tris..].copy_from_slice(&triangle_boxes(&tris[n_tris..]));
+        let packed = PackedTriangles::new(&wide.prim_indices, &tris[..n_tris]);
+        wide.refit_packed(&packed, n_tris, |p| expected[p as usize]);
+        wide.validate(&expected).unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        for node in &wide.nodes {
+            for s in 0..8 {
+                let (first, count) = (node.child[s] as usize, node.count[s] as usize);
+                let want = match count {
+                    0 if node.is_used(s) => wide.nodes[first].bounds(),
+                    0 => continue,
+                    _ => {
+                        let leaf = &wide.prim_indices[first..first + count];
+                        leaf.iter().fold(Aabb::EMPTY, |b, &p| {
+                            b.union(if (p as usize) < n_tris {
+                                widened(expected[p as usize])
+                            } else {
+                                expected[p as usize]
+                            })
+                        })
+                    }
+                };
+                assert_eq!(node.child_bounds(s), want, "frame {frame}: slot {s} of a node");
+            }
+        }
+        let bounds = expected.iter().fold(Aabb::EMPTY, |b, x| b.union(*x));
+        let all = PackedTriangles::new(&wide.prim_indices, &tris);
+        for ray in random_rays(bounds, 50, &mut rng) {
+            let hit = wide.closest_triangle(&all, &ray).map(|(p, h)| (h.t, p));
+            assert_eq!(hit, brute_force(&tris, &ray), "frame {frame}");
+        }
+    }
+}

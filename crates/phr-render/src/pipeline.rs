@@ -549,12 +549,7 @@ impl FramePipeline {
         let deforming = self.parts.as_ref().and_then(|p| p.deforming);
         if let Some(d) = deforming {
             // (Built once more on the first frame: the auxiliary tree starts here.)
-            let pose_start = Instant::now();
-            let mut boxes = std::mem::take(&mut self.part_boxes);
-            self.geometry.part_boxes_into(d, &mut boxes);
-            report.pose_ms += ms_since(pose_start);
-            self.update_deforming(d, &boxes, report);
-            self.part_boxes = boxes;
+            self.update_deforming(d, report);
         }
         let Some(parts) = &self.parts else { unreachable!("split above") };
         let place_start = Instant::now();
@@ -568,22 +563,37 @@ impl FramePipeline {
         self.tree_dirty = false;
     }
 
-    /// Rebuilds the deforming part `d` from its moved `boxes` (its order): with the builder in
-    /// the frame, or, for [`PipelineKind::Async`] with PHR, by refitting the traced tree and
-    /// taking the worker's tree when one has landed.
-    fn update_deforming(&mut self, d: usize, boxes: &[Aabb], report: &mut FrameReport) {
+    /// Recomputes the boxes of the deforming part `d` (its order) into
+    /// [`FramePipeline::part_boxes`], timed as posing.
+    fn update_part_boxes(&mut self, d: usize, report: &mut FrameReport) {
+        let start = Instant::now();
+        self.geometry.part_boxes_into(d, &mut self.part_boxes);
+        report.pose_ms += ms_since(start);
+    }
+
+    /// Rebuilds the deforming part `d` from its moved primitives: with the builder in the
+    /// frame, or, for [`PipelineKind::Async`] with PHR, by refitting the traced tree and
+    /// taking the worker's tree when one has landed. (The refit needs no primitive boxes:
+    /// they are computed only for a build.)
+    fn update_deforming(&mut self, d: usize, report: &mut FrameReport) {
+        let asynchronous =
+            self.settings.pipeline == PipelineKind::Async && matches!(self.settings.builder, Builder::Phr(_));
+        if !asynchronous || self.rebuilder.is_none() {
+            self.update_part_boxes(d, report);
+        }
         let build_start = Instant::now();
         let mut landed = false;
+        let boxes = std::mem::take(&mut self.part_boxes);
         match self.settings.builder {
-            Builder::Phr(options) if self.settings.pipeline == PipelineKind::Async => {
-                landed = self.refit_or_land(d, boxes, options, report);
+            Builder::Phr(options) if asynchronous => {
+                landed = self.refit_or_land(d, &boxes, options, report);
             }
             Builder::Phr(options) => {
                 self.tree_age = 0;
                 // Straight to the wide tree the renderer traces: no binary tree, no collapse.
-                let dynamic = self.dynamic.get_or_insert_with(|| DynamicBvh::new(boxes, options));
+                let dynamic = self.dynamic.get_or_insert_with(|| DynamicBvh::new(&boxes, options));
                 let created_ms = ms_since(build_start);
-                let (timings, wide_time) = self.geometry.set_part_wide(d, |wide| dynamic.update_wide(boxes, wide));
+                let (timings, wide_time) = self.geometry.set_part_wide(d, |wide| dynamic.update_wide(&boxes, wide));
                 report.refit_ms = created_ms + timings.refit.as_secs_f64() * 1e3;
                 report.build_ms += timings.build.as_secs_f64() * 1e3;
                 report.wide_ms = wide_time.as_secs_f64() * 1e3;
@@ -592,25 +602,31 @@ impl FramePipeline {
             Builder::BinnedSah(options) => {
                 self.tree_age = 0;
                 let (_, wide_time) =
-                    self.geometry.set_part_wide(d, |wide| build_binned_sah_wide(boxes, &options, wide));
+                    self.geometry.set_part_wide(d, |wide| build_binned_sah_wide(&boxes, &options, wide));
                 report.wide_ms = wide_time.as_secs_f64() * 1e3;
                 report.build_ms += ms_since(build_start) - report.wide_ms;
             }
             builder => {
                 self.tree_age = 0;
-                let bvh = builder.build_with_triangles(boxes, &self.geometry.part_triangles(d));
+                let bvh = builder.build_with_triangles(&boxes, &self.geometry.part_triangles(d));
                 report.build_ms += ms_since(build_start);
                 report.wide_ms = self.geometry.set_part_bvh(d, bvh).as_secs_f64() * 1e3;
             }
         }
+        self.part_boxes = boxes;
         self.sah = wide_sah_cost(self.geometry.part_wide(d), SahConstants::UNIT);
-        if let Some(rebuilder) = &mut self.rebuilder {
+        if self.rebuilder.is_some() {
             // The rebuild policy: a new tree once the refitted one has lost enough.
             if landed {
                 self.landed_sah = self.sah;
             }
-            if self.sah > self.rebuild_sah_growth * self.landed_sah {
-                rebuilder.start(boxes, self.frame);
+            if self.sah > self.rebuild_sah_growth * self.landed_sah
+                && !self.rebuilder.as_ref().is_some_and(|r| r.busy())
+            {
+                self.update_part_boxes(d, report);
+                if let Some(rebuilder) = &mut self.rebuilder {
+                    rebuilder.start(&self.part_boxes, self.frame);
+                }
             }
         }
     }

@@ -90,6 +90,11 @@ impl AsyncRebuilder {
         }
     }
 
+    /// Whether a rebuild is under way ([`AsyncRebuilder::start`] would do nothing).
+    pub fn busy(&self) -> bool {
+        self.busy
+    }
+
     /// The tree of the rebuild under way if it is done, without waiting.
     pub fn finished(&mut self) -> Option<Rebuilt> {
         if !self.busy {

@@ -4,34 +4,176 @@
 //!
 //! A refitted tree is valid but its quality decays as the primitives move; a dynamic scene
 //! traces it while a new tree is built (`phr_render::pipeline`).
+//!
+//! Two sources for the leaves' boxes: the primitives' boxes ([`WideBvh::refit`]), or, for a
+//! deforming mesh, the triangles just packed in leaf order ([`WideBvh::refit_packed`]). The
+//! second reads the packed blocks in the order they are stored, where the first gathers the
+//! boxes by primitive index, scattered over an array in scene order: on the 871k-triangle
+//! dragon the gather alone took 4 ms of a frame on 2 threads (`docs/dynamic/history.md`),
+//! and the boxes took 3 ms more to compute and store.
 
+use super::triangles::{PackedTriangles, LANES};
 use super::WideBvh;
 use crate::aabb::Aabb;
+use std::ops::Range;
 
 impl<const N: usize> WideBvh<N> {
     /// Recomputes every slot's box from `boxes` (the primitives' boxes by the indices in
-    /// [`WideBvh::prim_indices`]). The leaf slots, which read the primitives' boxes and are
-    /// most of the work, are refitted in parallel; then the interior slots, bottom up.
+    /// [`WideBvh::prim_indices`]).
     pub fn refit(&mut self, boxes: &[Aabb]) {
+        self.refit_with(|_, prims| prims.iter().fold(Aabb::EMPTY, |b, &p| b.union(boxes[p as usize])));
+    }
+
+    /// Recomputes every slot's box from `packed`, this tree's triangles packed in its leaf
+    /// order ([`PackedTriangles::repack`] after the triangles moved): a leaf's box encloses
+    /// its triangles as the packed test sees them ([`PackedTriangles::bounds`]). Entries
+    /// that are not triangles (the primitives `p >= triangle_count`, which a renderer tests
+    /// its own way) get `other(p)`.
+    pub fn refit_packed(
+        &mut self,
+        packed: &PackedTriangles,
+        triangle_count: usize,
+        other: impl Fn(u32) -> Aabb + Sync,
+    ) {
+        let is_triangle = |p: u32| (p as usize) < triangle_count;
+        self.refit_prefetched(
+            |entries, prims| match prims.iter().all(|&p| is_triangle(p)) {
+                true => packed.bounds(entries),
+                false => entries.zip(prims).fold(Aabb::EMPTY, |b, (i, &p)| {
+                    b.union(if is_triangle(p) { packed.bounds(i..i + 1) } else { other(p) })
+                }),
+            },
+            |entries| {
+                packed.prefetch(entries.start as u32);
+                if entries.end - entries.start > LANES {
+                    packed.prefetch((entries.end - 1) as u32);
+                }
+            },
+        );
+    }
+
+    /// Recomputes every slot's box: a leaf slot's is `leaf_bounds(entries, prims)`, the box
+    /// of its primitives `prims` (at positions `entries` of [`WideBvh::prim_indices`]). The
+    /// leaf slots, which read the primitives and are most of the work, are refitted in
+    /// parallel; then the interior slots, bottom up.
+    pub fn refit_with(&mut self, leaf_bounds: impl Fn(Range<usize>, &[u32]) -> Aabb + Sync) {
+        self.refit_prefetched(leaf_bounds, |_| {});
+    }
+
+    /// [`WideBvh::refit_with`], asking for the data of the leaves a few nodes ahead with
+    /// `prefetch(entries)`. A node's leaves are not next to its neighbours' in the leaf
+    /// order (a node's children are stored together, their leaves where each subtree was
+    /// built), so without the hint every leaf's first load waits for memory.
+    pub fn refit_prefetched(
+        &mut self,
+        leaf_bounds: impl Fn(Range<usize>, &[u32]) -> Aabb + Sync,
+        prefetch: impl Fn(Range<usize>) + Sync,
+    ) {
         use rayon::prelude::*;
+        const GRAIN: usize = 256;
+        const AHEAD: usize = 8;
+        let leaves = |node: &super::WideNode<N>| {
+            for s in 0..N {
+                if node.count[s] > 0 {
+                    let first = node.child[s] as usize;
+                    prefetch(first..first + node.count[s] as usize);
+                }
+            }
+        };
+        // Each node's box (the union of its slots), complete after the leaf pass for the
+        // nodes with leaves only, which are most of them; the others are listed by chunk.
+        let mut own = vec![Aabb::EMPTY; self.nodes.len()];
         let prims = &self.prim_indices;
-        self.nodes.par_iter_mut().with_min_len(256).for_each(|node| {
+        let with_interior: Vec<Vec<u32>> = self
+            .nodes
+            .par_chunks_mut(GRAIN)
+            .zip(own.par_chunks_mut(GRAIN))
+            .enumerate()
+            .map(|(c, (chunk, own))| {
+                let mut with_interior = Vec::new();
+                for node in &chunk[..AHEAD.min(chunk.len())] {
+                    leaves(node);
+                }
+                for k in 0..chunk.len() {
+                    if let Some(ahead) = chunk.get(k + AHEAD) {
+                        leaves(ahead);
+                    }
+                    let node = &mut chunk[k];
+                    let (mut interior, mut union) = (false, Aabb::EMPTY);
+                    for s in 0..N {
+                        let (first, count) = (node.child[s] as usize, node.count[s] as usize);
+                        if count > 0 {
+                            let entries = first..first + count;
+                            let b = leaf_bounds(entries.clone(), &prims[entries]);
+                            node.set_child_bounds(s, b);
+                            union = union.union(b);
+                        } else {
+                            interior |= node.is_used(s);
+                        }
+                    }
+                    match interior {
+                        true => with_interior.push((c * GRAIN + k) as u32),
+                        false => own[k] = union,
+                    }
+                }
+                with_interior
+            })
+            .collect();
+        // Bottom up: a node's children come after it. Only the nodes with interior slots are
+        // visited, and their children's boxes are read from `own`, not from the children.
+        let order: Vec<u32> = with_interior.iter().rev().flat_map(|list| list.iter().rev().copied()).collect();
+        for (k, &i) in order.iter().enumerate() {
+            if let Some(&ahead) = order.get(k + AHEAD) {
+                super::traverse::prefetch_node(&self.nodes, ahead);
+            }
+            let node = &mut self.nodes[i as usize];
+            let mut union = Aabb::EMPTY;
             for s in 0..N {
-                let (first, count) = (node.child[s] as usize, node.count[s] as usize);
-                if count > 0 {
-                    let leaf = &prims[first..first + count];
-                    node.set_child_bounds(s, leaf.iter().fold(Aabb::EMPTY, |b, &p| b.union(boxes[p as usize])));
+                let b = node.child_bounds(s);
+                if node.count[s] == 0 && !b.is_empty() {
+                    let b = own[node.child[s] as usize];
+                    node.set_child_bounds(s, b);
+                    union = union.union(b);
+                } else {
+                    union = union.union(b);
                 }
             }
-        });
-        for i in (0..self.nodes.len()).rev() {
-            let mut node = self.nodes[i];
-            for s in 0..N {
-                if node.count[s] == 0 && node.is_used(s) {
-                    node.set_child_bounds(s, self.nodes[node.child[s] as usize].bounds());
-                }
-            }
-            self.nodes[i] = node;
+            own[i as usize] = union;
         }
+    }
+}
+
+impl PackedTriangles {
+    /// The box of the triangles of `entries` (a range of the tree's leaf order) as the
+    /// packed test sees them: `v0`, `v0 + e1` and `v0 + e2`, each sum rounded to the nearest
+    /// float, so the box is widened by a relative `2⁻²³` (at least one unit in the last place
+    /// of each bound) to hold the exact sums. Computed 4 lanes at a time, a block after the
+    /// other, lanes outside `entries` masked out. (Read entry by entry, as `Vec3`s, the
+    /// lanes went through the stack and every load waited for a failed store forwarding:
+    /// twice the time of gathering the primitives' boxes.)
+    pub fn bounds(&self, entries: Range<usize>) -> Aabb {
+        use glam::Vec4;
+        const LANE: Vec4 = Vec4::new(0.0, 1.0, 2.0, 3.0);
+        let (mut lo, mut hi) = ([Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]);
+        if entries.is_empty() {
+            return Aabb::EMPTY;
+        }
+        for b in entries.start / LANES..=(entries.end - 1) / LANES {
+            let rows = &self.blocks[b].rows;
+            // Lane l holds entry b·4 + l (differences taken in integers: exact in f32).
+            let base = (b * LANES) as isize;
+            let inside = LANE.cmpge(Vec4::splat((entries.start as isize - base) as f32))
+                & LANE.cmplt(Vec4::splat((entries.end as isize - base) as f32));
+            for axis in 0..3 {
+                let v0 = Vec4::from_array(rows[axis]);
+                let (v1, v2) = (v0 + Vec4::from_array(rows[3 + axis]), v0 + Vec4::from_array(rows[6 + axis]));
+                lo[axis] = Vec4::select(inside, lo[axis].min(v0.min(v1).min(v2)), lo[axis]);
+                hi[axis] = Vec4::select(inside, hi[axis].max(v0.max(v1).max(v2)), hi[axis]);
+            }
+        }
+        let min = glam::Vec3::new(lo[0].min_element(), lo[1].min_element(), lo[2].min_element());
+        let max = glam::Vec3::new(hi[0].max_element(), hi[1].max_element(), hi[2].max_element());
+        const ULP: f32 = f32::EPSILON;
+        Aabb::new(min - min.abs() * ULP, max + max.abs() * ULP)
     }
 }

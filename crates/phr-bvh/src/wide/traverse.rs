@@ -568,7 +568,7 @@ fn prefetch_line(p: *const i8) {
 
 /// Asks for the box rows of node `i` (popped later) to be loaded into the cache.
 #[inline(always)]
-fn prefetch_node<const N: usize>(nodes: &[WideNode<N>], i: u32) {
+pub(super) fn prefetch_node<const N: usize>(nodes: &[WideNode<N>], i: u32) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};

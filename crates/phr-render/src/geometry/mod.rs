@@ -106,7 +106,9 @@ pub struct Geometry {
     /// has any (meshes without them get zeros).
     pub triangle_uv: Vec<[Vec2; 3]>,
     pub spheres: Vec<SphereObject>,
-    /// The primitives' boxes, in the same space as the primitives.
+    /// The primitives' boxes, in the same space as the primitives, as of the last build: a
+    /// deforming part whose tree is only refitted ([`Geometry::refit_part`]) leaves its
+    /// entries behind ([`Geometry::primitive_boxes`] computes them afresh).
     pub boxes: Vec<Aabb>,
     /// One part (the whole scene, in place) or the parts of [`Geometry::split`].
     parts: Vec<Part>,
@@ -332,12 +334,27 @@ impl Geometry {
 
     /// Recomputes the primitive boxes (after vertices moved).
     pub fn update_boxes(&mut self) {
-        use rayon::prelude::*;
         // Into the previous frame's memory (a dynamic scene does this every frame).
         let mut boxes = std::mem::take(&mut self.boxes);
-        self.scene_triangles().par_iter().map(|&[a, b, c]| triangle_bounds(a, b, c)).collect_into_vec(&mut boxes);
-        boxes.extend(self.spheres.iter().map(|s| s.sphere.bounds()));
+        self.primitive_boxes_into(&mut boxes);
         self.boxes = boxes;
+    }
+
+    /// The primitives' boxes where the primitives are now (what [`Geometry::update_boxes`]
+    /// stores; after [`Geometry::release_triangles`], which nothing moves, the stored ones).
+    pub fn primitive_boxes(&self) -> Vec<Aabb> {
+        if self.released.is_some() {
+            return self.boxes.clone();
+        }
+        let mut boxes = Vec::new();
+        self.primitive_boxes_into(&mut boxes);
+        boxes
+    }
+
+    fn primitive_boxes_into(&self, boxes: &mut Vec<Aabb>) {
+        use rayon::prelude::*;
+        self.scene_triangles().par_iter().map(|&[a, b, c]| triangle_bounds(a, b, c)).collect_into_vec(boxes);
+        boxes.extend(self.spheres.iter().map(|s| s.sphere.bounds()));
     }
 
     /// Builds one BVH over the whole scene with `builder` and sets it ([`Geometry::set_bvh`]),
@@ -506,10 +523,11 @@ impl Geometry {
         (built, elapsed)
     }
 
-    /// Refits part `k`'s wide tree to its primitives where they are now (from
-    /// [`Geometry::boxes`], which [`Geometry::part_boxes_into`] updates) and packs its
-    /// triangles again: the tree keeps its topology and stays valid, though its quality decays
-    /// with the motion. Returns the time taken.
+    /// Packs part `k`'s triangles again and refits its wide tree to its primitives where they
+    /// are now: the tree keeps its topology and stays valid, though its quality decays with
+    /// the motion. The leaves' boxes come from the packed triangles
+    /// ([`WideBvh::refit_packed`]), so [`Geometry::boxes`] is neither read nor updated.
+    /// Returns the time taken.
     ///
     /// With `landed`, a tree built meanwhile (over the part's primitives numbered in its
     /// order, as [`Geometry::set_part_wide`] takes it) replaces the part's first, and the
@@ -523,9 +541,11 @@ impl Geometry {
                 to_scene_order(&mut part.wide.prim_indices, prims);
             }
         }
-        self.parts[k].wide.refit(&self.boxes);
         self.parts[k].bvh = Bvh::default();
         self.pack_part(k);
+        let (n_tris, spheres) = (self.triangle_count(), &self.spheres);
+        let Part { wide, packed, .. } = &mut self.parts[k];
+        wide.refit_packed(packed, n_tris, |p| spheres[p as usize - n_tris].sphere.bounds());
         self.update_part_bounds(k);
         start.elapsed()
     }

@@ -707,7 +707,7 @@ fn tune(pipeline: &FramePipeline, shared: &Shared, ctx: &egui::Context) {
         Builder::Phr(o) => o,
         _ => PhrOptions::FAST,
     };
-    let evaluator = phr_tune::PhrEvaluator::new(&pipeline.geometry().boxes, base);
+    let evaluator = phr_tune::PhrEvaluator::new(&pipeline.geometry().primitive_boxes(), base);
     let options = TuneOptions {
         method: Method::Bayes(BoOptions::default()),
         objective: ObjectiveKind::Thesis {
