@@ -1,16 +1,16 @@
 //! Refitting a wide tree to moved primitives: the topology is kept, every slot's box is
-//! recomputed. Nodes are visited last to first, which is bottom up because every builder
-//! here stores a node's children after it (checked by [`WideBvh::validate`]).
+//! recomputed, the leaf slots in parallel, then the interior slots bottom up (last to first,
+//! which is bottom up because every builder here stores a node's children after it, as
+//! [`WideBvh::validate`] checks).
 //!
 //! A refitted tree is valid but its quality decays as the primitives move; a dynamic scene
 //! traces it while a new tree is built (`phr_render::pipeline`).
 //!
 //! Two sources for the leaves' boxes: the primitives' boxes ([`WideBvh::refit`]), or, for a
 //! deforming mesh, the triangles just packed in leaf order ([`WideBvh::refit_packed`]). The
-//! second reads the packed blocks in the order they are stored, where the first gathers the
-//! boxes by primitive index, scattered over an array in scene order: on the 871k-triangle
-//! dragon the gather alone took 4 ms of a frame on 2 threads (`docs/dynamic/history.md`),
-//! and the boxes took 3 ms more to compute and store.
+//! second needs no boxes at all: on the 871k-triangle dragon, computing them, storing them in
+//! scene order and gathering them back by primitive index took 7 ms of a frame on 2 threads
+//! (`docs/dynamic/history.md`).
 
 use super::triangles::{PackedTriangles, LANES};
 use super::WideBvh;
@@ -72,7 +72,7 @@ impl<const N: usize> WideBvh<N> {
         use rayon::prelude::*;
         const GRAIN: usize = 256;
         const AHEAD: usize = 8;
-        let leaves = |node: &super::WideNode<N>| {
+        let prefetch_leaves = |node: &super::WideNode<N>| {
             for s in 0..N {
                 if node.count[s] > 0 {
                     let first = node.child[s] as usize;
@@ -92,11 +92,11 @@ impl<const N: usize> WideBvh<N> {
             .map(|(c, (chunk, own))| {
                 let mut with_interior = Vec::new();
                 for node in &chunk[..AHEAD.min(chunk.len())] {
-                    leaves(node);
+                    prefetch_leaves(node);
                 }
                 for k in 0..chunk.len() {
                     if let Some(ahead) = chunk.get(k + AHEAD) {
-                        leaves(ahead);
+                        prefetch_leaves(ahead);
                     }
                     let node = &mut chunk[k];
                     let (mut interior, mut union) = (false, Aabb::EMPTY);
@@ -129,14 +129,12 @@ impl<const N: usize> WideBvh<N> {
             let node = &mut self.nodes[i as usize];
             let mut union = Aabb::EMPTY;
             for s in 0..N {
-                let b = node.child_bounds(s);
+                let mut b = node.child_bounds(s);
                 if node.count[s] == 0 && !b.is_empty() {
-                    let b = own[node.child[s] as usize];
+                    b = own[node.child[s] as usize];
                     node.set_child_bounds(s, b);
-                    union = union.union(b);
-                } else {
-                    union = union.union(b);
                 }
+                union = union.union(b);
             }
             own[i as usize] = union;
         }
