@@ -16,7 +16,7 @@
 //! on its own range; below [`PARALLEL_GRAIN`] primitives one task builds its subtree into a
 //! piece.
 
-use super::{BinnedSahOptions, Bins, Bounds, Ctx, Decision, PrimRef, MAX_BINS, MAX_PRIMS};
+use super::{BinnedSahOptions, Bins, Bounds, Ctx, Decision, PrimRef, MAX_PRIMS};
 use crate::aabb::Aabb;
 use crate::wide::pieces::{assemble, build_piece, place_leaf, WideBuilt, WidePiece};
 use crate::wide::{CollapseOptions, WideBvh, WideNode};
@@ -82,11 +82,8 @@ pub fn build_binned_sah_wide<const N: usize>(boxes: &[Aabb], options: &BinnedSah
     assert!(boxes.len() < MAX_PRIMS, "the binned SAH builder takes fewer than 2^30 primitives");
     let mut refs: Vec<PrimRef> = boxes.par_iter().enumerate().map(|(i, b)| PrimRef::new(i, b)).collect();
     let collapse = CollapseOptions::default();
-    let wide = WideCtx {
-        ctx: Ctx { bins: options.bins.clamp(2, MAX_BINS), leaf: options.leaf },
-        merge: collapse.merge_leaves as usize,
-        align: collapse.leaf_align as usize,
-    };
+    let wide =
+        WideCtx { ctx: Ctx::new(options), merge: collapse.merge_leaves as usize, align: collapse.leaf_align as usize };
     let root = wide.slot(Bounds::of(&refs), 0, refs.len(), 0);
     let split = wide.split(&mut refs, &root, &mut Bins::boxed());
     let built = wide.build::<N>(&mut refs, root, split, Vec::new(), 0);
