@@ -615,19 +615,23 @@ impl FramePipeline {
         }
         self.part_boxes = boxes;
         self.sah = wide_sah_cost(self.geometry.part_wide(d), SahConstants::UNIT);
-        if self.rebuilder.is_some() {
-            // The rebuild policy: a new tree once the refitted one has lost enough.
-            if landed {
-                self.landed_sah = self.sah;
-            }
-            if self.sah > self.rebuild_sah_growth * self.landed_sah
-                && !self.rebuilder.as_ref().is_some_and(|r| r.busy())
-            {
-                self.update_part_boxes(d, report);
-                if let Some(rebuilder) = &mut self.rebuilder {
-                    rebuilder.start(&self.part_boxes, self.frame);
-                }
-            }
+        self.apply_rebuild_policy(d, landed, report);
+    }
+
+    /// The asynchronous rebuild policy: a new tree once the refitted one's SAH cost has grown
+    /// past `rebuild_sah_growth` times that of the last tree that landed, unless the worker
+    /// is still busy with one.
+    fn apply_rebuild_policy(&mut self, d: usize, landed: bool, report: &mut FrameReport) {
+        let Some(rebuilder) = &self.rebuilder else { return };
+        if landed {
+            self.landed_sah = self.sah;
+        }
+        if self.sah <= self.rebuild_sah_growth * self.landed_sah || rebuilder.busy() {
+            return;
+        }
+        self.update_part_boxes(d, report);
+        if let Some(rebuilder) = &mut self.rebuilder {
+            rebuilder.start(&self.part_boxes, self.frame);
         }
     }
 

@@ -7,10 +7,10 @@
 //! traces it while a new tree is built (`phr_render::pipeline`).
 //!
 //! Two sources for the leaves' boxes: the primitives' boxes ([`WideBvh::refit`]), or, for a
-//! deforming mesh, the triangles just packed in leaf order ([`WideBvh::refit_packed`]). The
-//! second needs no boxes at all: on the 871k-triangle dragon, computing them, storing them in
-//! scene order and gathering them back by primitive index took 7 ms of a frame on 2 threads
-//! (`docs/dynamic/history.md`).
+//! deforming mesh, the triangles just packed in leaf order ([`WideBvh::refit_packed`], with
+//! [`PackedTriangles::bounds`]). The second needs no boxes at all: on the 871k-triangle
+//! dragon, computing them, storing them in scene order and gathering them back by primitive
+//! index took 7 ms of a frame on 2 threads (`docs/dynamic/history.md`).
 
 use super::triangles::{PackedTriangles, LANES};
 use super::WideBvh;
@@ -138,40 +138,5 @@ impl<const N: usize> WideBvh<N> {
             }
             own[i as usize] = union;
         }
-    }
-}
-
-impl PackedTriangles {
-    /// The box of the triangles of `entries` (a range of the tree's leaf order) as the
-    /// packed test sees them: `v0`, `v0 + e1` and `v0 + e2`, each sum rounded to the nearest
-    /// float, so the box is widened by a relative `2⁻²³` (at least one unit in the last place
-    /// of each bound) to hold the exact sums. Computed 4 lanes at a time, a block after the
-    /// other, lanes outside `entries` masked out. (Read entry by entry, as `Vec3`s, the
-    /// lanes went through the stack and every load waited for a failed store forwarding:
-    /// twice the time of gathering the primitives' boxes.)
-    pub fn bounds(&self, entries: Range<usize>) -> Aabb {
-        use glam::Vec4;
-        const LANE: Vec4 = Vec4::new(0.0, 1.0, 2.0, 3.0);
-        let (mut lo, mut hi) = ([Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]);
-        if entries.is_empty() {
-            return Aabb::EMPTY;
-        }
-        for b in entries.start / LANES..=(entries.end - 1) / LANES {
-            let rows = &self.blocks[b].rows;
-            // Lane l holds entry b·4 + l (differences taken in integers: exact in f32).
-            let base = (b * LANES) as isize;
-            let inside = LANE.cmpge(Vec4::splat((entries.start as isize - base) as f32))
-                & LANE.cmplt(Vec4::splat((entries.end as isize - base) as f32));
-            for axis in 0..3 {
-                let v0 = Vec4::from_array(rows[axis]);
-                let (v1, v2) = (v0 + Vec4::from_array(rows[3 + axis]), v0 + Vec4::from_array(rows[6 + axis]));
-                lo[axis] = Vec4::select(inside, lo[axis].min(v0.min(v1).min(v2)), lo[axis]);
-                hi[axis] = Vec4::select(inside, hi[axis].max(v0.max(v1).max(v2)), hi[axis]);
-            }
-        }
-        let min = glam::Vec3::new(lo[0].min_element(), lo[1].min_element(), lo[2].min_element());
-        let max = glam::Vec3::new(hi[0].max_element(), hi[1].max_element(), hi[2].max_element());
-        const ULP: f32 = f32::EPSILON;
-        Aabb::new(min - min.abs() * ULP, max + max.abs() * ULP)
     }
 }
