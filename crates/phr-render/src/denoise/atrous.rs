@@ -75,17 +75,23 @@ pub(crate) struct GuidePlanes {
     position: [Vec<f32>; 3],
     /// 0: not a surface to filter ([`Guide::footprint`]).
     footprint: Vec<f32>,
+    /// The surface mask (1 on surfaces) under [`blur_3x3`]: the weights that normalise each
+    /// pass's blurred variance, the same for every pass.
+    surface_blurred: Vec<f32>,
 }
 
 impl GuidePlanes {
     pub fn new(guide: &Guide) -> Self {
-        let plane = |v: &[Vec3], c: usize| v.iter().map(|p| p[c]).collect::<Vec<f32>>();
+        let plane = |v: &[Vec3], c: usize| v.par_iter().map(|p| p[c]).collect::<Vec<f32>>();
+        let (width, height) = (guide.width as usize, guide.height as usize);
+        let surface: Vec<f32> = guide.footprint.par_iter().map(|f| if *f > 0.0 { 1.0 } else { 0.0 }).collect();
         Self {
-            width: guide.width as usize,
-            height: guide.height as usize,
+            width,
+            height,
             normal: [plane(&guide.normal, 0), plane(&guide.normal, 1), plane(&guide.normal, 2)],
             position: [plane(&guide.position, 0), plane(&guide.position, 1), plane(&guide.position, 2)],
             footprint: guide.footprint.clone(),
+            surface_blurred: blur_3x3(&surface, width, height),
         }
     }
 }
@@ -98,7 +104,7 @@ pub(crate) struct Signal {
 
 impl Signal {
     pub fn new(illumination: &[Vec3], var: Vec<f32>) -> Self {
-        let plane = |c: usize| illumination.iter().map(|p| p[c]).collect::<Vec<f32>>();
+        let plane = |c: usize| illumination.par_iter().map(|p| p[c]).collect::<Vec<f32>>();
         Self { colour: [plane(0), plane(1), plane(2)], var }
     }
 
@@ -108,7 +114,7 @@ impl Signal {
 
     fn luminance(&self) -> Vec<f32> {
         let [r, g, b] = &self.colour;
-        r.iter().zip(g).zip(b).map(|((r, g), b)| luminance(Vec3::new(*r, *g, *b))).collect()
+        (r, g, b).into_par_iter().map(|(r, g, b)| luminance(Vec3::new(*r, *g, *b))).collect()
     }
 }
 
@@ -151,39 +157,33 @@ impl Atrous {
         let widest = wide && std::arch::is_x86_feature_detected!("avx512f");
         #[cfg(not(target_arch = "x86_64"))]
         let widest = false;
-        let rows: Vec<RowSums> = (0..h)
-            .into_par_iter()
-            .map(|y| {
-                let args = (guide, signal, &lum[..], &blurred[..], y, step);
-                if widest {
-                    // SAFETY: the CPU has AVX-512 F (checked above).
-                    unsafe { self.row_avx512(args) }
-                } else if wide {
-                    // SAFETY: the CPU has AVX2 (checked above).
-                    unsafe { self.row_avx2(args) }
-                } else {
-                    self.row(args)
-                }
-            })
-            .collect();
         let mut out = Signal { colour: [vec![0.0; w * h], vec![0.0; w * h], vec![0.0; w * h]], var: vec![0.0; w * h] };
-        for (y, sums) in rows.into_iter().enumerate() {
-            for x in 0..w {
+        let [out_r, out_g, out_b] = &mut out.colour;
+        let rows =
+            (out_r.par_chunks_mut(w), out_g.par_chunks_mut(w), out_b.par_chunks_mut(w), out.var.par_chunks_mut(w));
+        rows.into_par_iter().enumerate().for_each(|(y, (r, g, b, var))| {
+            let args = (guide, signal, &lum[..], &blurred[..], y, step);
+            let sums = if widest {
+                // SAFETY: the CPU has AVX-512 F (checked above).
+                unsafe { self.row_avx512(args) }
+            } else if wide {
+                // SAFETY: the CPU has AVX2 (checked above).
+                unsafe { self.row_avx2(args) }
+            } else {
+                self.row(args)
+            };
+            for (x, (((r, g), b), var)) in r.iter_mut().zip(g.iter_mut()).zip(b.iter_mut()).zip(var).enumerate() {
                 let i = y * w + x;
                 if guide.footprint[i] > 0.0 {
                     let total = sums.weight[x];
-                    for c in 0..3 {
-                        out.colour[c][i] = sums.colour[c][x] / total;
-                    }
-                    out.var[i] = sums.var[x] / (total * total);
+                    (*r, *g, *b) = (sums.colour[0][x] / total, sums.colour[1][x] / total, sums.colour[2][x] / total);
+                    *var = sums.var[x] / (total * total);
                 } else {
-                    for c in 0..3 {
-                        out.colour[c][i] = signal.colour[c][i];
-                    }
-                    out.var[i] = signal.var[i];
+                    (*r, *g, *b) = (signal.colour[0][i], signal.colour[1][i], signal.colour[2][i]);
+                    *var = signal.var[i];
                 }
             }
-        }
+        });
         out
     }
 
@@ -322,36 +322,33 @@ impl Tap {
 /// The variance smoothed by a 3×3 Gaussian over surface pixels, as SVGF does before each pass:
 /// one pixel's variance estimate from few samples is itself noisy.
 fn blurred_variance(guide: &GuidePlanes, var: &[f32]) -> Vec<f32> {
-    const GAUSS: [f32; 3] = [0.25, 0.5, 0.25];
-    let (w, h) = (guide.width, guide.height);
     let masked: Vec<f32> =
-        var.iter().zip(&guide.footprint).map(|(v, f)| if *f > 0.0 { v.max(0.0) } else { 0.0 }).collect();
-    let surface: Vec<f32> = guide.footprint.iter().map(|f| if *f > 0.0 { 1.0 } else { 0.0 }).collect();
-    // Separable: rows, then columns, of the masked variance and of the mask.
-    let horizontal = |plane: &[f32]| -> Vec<f32> {
-        let mut out = vec![0.0; w * h];
-        for (row_out, row) in out.chunks_mut(w).zip(plane.chunks(w)) {
-            for x in 0..w {
-                let left = if x > 0 { row[x - 1] } else { 0.0 };
-                let right = if x + 1 < w { row[x + 1] } else { 0.0 };
-                row_out[x] = GAUSS[0] * left + GAUSS[1] * row[x] + GAUSS[2] * right;
-            }
+        var.par_iter().zip(&guide.footprint).map(|(v, f)| if *f > 0.0 { v.max(0.0) } else { 0.0 }).collect();
+    let sum = blur_3x3(&masked, guide.width, guide.height);
+    sum.par_iter().zip(&guide.surface_blurred).map(|(s, t)| if *t > 0.0 { s / t } else { 0.0 }).collect()
+}
+
+/// `plane` (`w × h`, row-major) under the separable 3×3 kernel (¼, ½, ¼)², zero outside;
+/// rows in parallel.
+fn blur_3x3(plane: &[f32], w: usize, h: usize) -> Vec<f32> {
+    const GAUSS: [f32; 3] = [0.25, 0.5, 0.25];
+    let mut across = vec![0.0; w * h];
+    across.par_chunks_mut(w).zip(plane.par_chunks(w)).for_each(|(row_out, row)| {
+        for x in 0..w {
+            let left = if x > 0 { row[x - 1] } else { 0.0 };
+            let right = if x + 1 < w { row[x + 1] } else { 0.0 };
+            row_out[x] = GAUSS[0] * left + GAUSS[1] * row[x] + GAUSS[2] * right;
         }
-        out
-    };
-    let vertical = |plane: &[f32]| -> Vec<f32> {
-        let mut out = vec![0.0; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                let up = if y > 0 { plane[(y - 1) * w + x] } else { 0.0 };
-                let down = if y + 1 < h { plane[(y + 1) * w + x] } else { 0.0 };
-                out[y * w + x] = GAUSS[0] * up + GAUSS[1] * plane[y * w + x] + GAUSS[2] * down;
-            }
+    });
+    let mut out = vec![0.0; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row_out)| {
+        for (x, o) in row_out.iter_mut().enumerate() {
+            let up = if y > 0 { across[(y - 1) * w + x] } else { 0.0 };
+            let down = if y + 1 < h { across[(y + 1) * w + x] } else { 0.0 };
+            *o = GAUSS[0] * up + GAUSS[1] * across[y * w + x] + GAUSS[2] * down;
         }
-        out
-    };
-    let (sum, total) = (vertical(&horizontal(&masked)), vertical(&horizontal(&surface)));
-    sum.iter().zip(&total).map(|(s, t)| if *t > 0.0 { s / t } else { 0.0 }).collect()
+    });
+    out
 }
 
 /// Smallest albedo channel divided by (dark surfaces would blow their noise up).

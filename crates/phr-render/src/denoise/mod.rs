@@ -190,10 +190,10 @@ impl Guide {
         Guide {
             width,
             height,
-            albedo: pixels.iter().map(|p| p.0).collect(),
-            normal: pixels.iter().map(|p| p.1).collect(),
-            position: pixels.iter().map(|p| p.2).collect(),
-            footprint: pixels.iter().map(|p| p.3).collect(),
+            albedo: pixels.par_iter().map(|p| p.0).collect(),
+            normal: pixels.par_iter().map(|p| p.1).collect(),
+            position: pixels.par_iter().map(|p| p.2).collect(),
+            footprint: pixels.par_iter().map(|p| p.3).collect(),
         }
     }
 }

@@ -105,7 +105,7 @@ impl Temporal {
     pub fn denoise(&mut self, colour: &[Vec3], guide: &Guide, camera: &Camera) -> Vec<Vec3> {
         let (w, h) = (guide.width as usize, guide.height as usize);
         assert_eq!(colour.len(), w * h, "image and guide sizes differ");
-        let albedo: Vec<Vec3> = guide.albedo.iter().map(|a| a.max(Vec3::splat(MIN_ALBEDO))).collect();
+        let albedo: Vec<Vec3> = guide.albedo.par_iter().map(|a| a.max(Vec3::splat(MIN_ALBEDO))).collect();
         let history = self.history.take().filter(|old| old.width == w && old.height == h);
         let blended: Vec<Reprojected> = (0..w * h)
             .into_par_iter()
@@ -131,10 +131,10 @@ impl Temporal {
             .collect();
         let variance = self.variance(guide, &blended);
         let planes = GuidePlanes::new(guide);
-        let illumination: Vec<Vec3> = blended.iter().map(|b| b.illumination).collect();
+        let illumination: Vec<Vec3> = blended.par_iter().map(|b| b.illumination).collect();
         let mut first_pass = None;
         let out = self.atrous.filter(&planes, Signal::new(&illumination, variance), |s| {
-            first_pass = Some((0..w * h).map(|i| s.get(i)).collect::<Vec<Vec3>>())
+            first_pass = Some((0..w * h).into_par_iter().map(|i| s.get(i)).collect::<Vec<Vec3>>())
         });
         self.history = Some(History {
             camera: camera.clone(),
@@ -143,10 +143,13 @@ impl Temporal {
             normal: guide.normal.clone(),
             position: guide.position.clone(),
             illumination: first_pass.unwrap_or(illumination),
-            moments: blended.iter().map(|b| b.moments).collect(),
-            length: blended.iter().map(|b| b.length).collect(),
+            moments: blended.par_iter().map(|b| b.moments).collect(),
+            length: blended.par_iter().map(|b| b.length).collect(),
         });
-        (0..w * h).map(|i| if guide.footprint[i] > 0.0 { out.get(i) * albedo[i] } else { colour[i] }).collect()
+        (0..w * h)
+            .into_par_iter()
+            .map(|i| if guide.footprint[i] > 0.0 { out.get(i) * albedo[i] } else { colour[i] })
+            .collect()
     }
 
     /// The variance of each pixel's blended estimate: the sample variance from its moments (or
