@@ -21,8 +21,9 @@ pub enum GpuError {
     Failed(String),
 }
 
-/// Storage buffers the path tracer's kernel binds: the scene's ten and the frame's three.
-const STORAGE_BUFFERS: u32 = 13;
+/// Storage buffers the path tracer's kernel binds: the scene's sixteen (its nodes and its
+/// primitives over four bindings each) and the frame's three.
+const STORAGE_BUFFERS: u32 = 19;
 
 /// A device and its queue (a clone is another handle on the same device).
 #[derive(Clone)]
@@ -168,6 +169,12 @@ impl Gpu {
         }
     }
 
+    /// Elements of type `T` one storage binding holds: how the nodes and the primitives are
+    /// cut across bindings (the kernels' `nodes_per_binding` and `prims_per_binding`).
+    pub(crate) fn per_binding<T>(&self) -> usize {
+        (self.max_binding / std::mem::size_of::<T>() as u64).min(u64::from(u32::MAX)) as usize
+    }
+
     /// A compute pipeline running `entry` of the WGSL `source` with these bind group layouts.
     pub(crate) fn pipeline(
         &self,
@@ -191,7 +198,13 @@ impl Gpu {
             layout: Some(&layout),
             module: &module,
             entry_point: Some(entry),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &[
+                    ("nodes_per_binding", self.per_binding::<crate::scene::GpuNode>() as f64),
+                    ("prims_per_binding", self.per_binding::<crate::scene::GpuPrim>() as f64),
+                ],
+                ..Default::default()
+            },
             cache: None,
         })
     }

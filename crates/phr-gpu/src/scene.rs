@@ -295,7 +295,7 @@ pub struct GpuScene {
     pub bytes: u64,
 }
 
-const BUFFERS: usize = 10;
+const BUFFERS: usize = 16;
 const BUFFER_NAMES: [&str; BUFFERS] = [
     "BVH nodes",
     "primitives",
@@ -307,16 +307,29 @@ const BUFFER_NAMES: [&str; BUFFERS] = [
     "texture coordinates",
     "environment map",
     "environment map tables",
+    "BVH nodes (2nd binding)",
+    "BVH nodes (3rd binding)",
+    "BVH nodes (4th binding)",
+    "primitives (2nd binding)",
+    "primitives (3rd binding)",
+    "primitives (4th binding)",
 ];
+/// The bindings that hold the nodes and the primitives, in order (`common.wgsl`: `node_at`
+/// and `prim_at`).
+const NODE_BINDINGS: [usize; SPLIT] = [0, 10, 11, 12];
+const PRIM_BINDINGS: [usize; SPLIT] = [1, 13, 14, 15];
+/// Bindings an array may be split across.
+const SPLIT: usize = 4;
 /// The buffers a moving scene changes ([`GpuScene::update`]): nodes, primitives, lights, light
 /// weights.
-const MOVING: [usize; 4] = [0, 1, 3, 4];
+const MOVING: [usize; 10] = [0, 1, 3, 4, 10, 11, 12, 13, 14, 15];
 
-/// The bytes of each buffer of [`GpuScene`], in binding order.
-fn contents(packed: &Packed) -> [&[u8]; BUFFERS] {
-    [
-        bytemuck::cast_slice(&packed.nodes),
-        bytemuck::cast_slice(&packed.prims),
+/// The bytes of each buffer of [`GpuScene`], in binding order: the nodes and the primitives
+/// cut into as many bindings as they need on `gpu` ([`Gpu::per_binding`]).
+fn contents<'a>(gpu: &Gpu, packed: &'a Packed) -> Result<[&'a [u8]; BUFFERS], GpuError> {
+    let mut data: [&[u8]; BUFFERS] = [
+        &[],
+        &[],
         bytemuck::cast_slice(&packed.materials),
         bytemuck::cast_slice(&packed.lights),
         bytemuck::cast_slice(&packed.light_cdf),
@@ -325,7 +338,41 @@ fn contents(packed: &Packed) -> [&[u8]; BUFFERS] {
         bytemuck::cast_slice(&packed.uvs),
         bytemuck::cast_slice(&packed.environment_texels),
         bytemuck::cast_slice(&packed.environment_tables),
-    ]
+        &[],
+        &[],
+        &[],
+        &[],
+        &[],
+        &[],
+    ];
+    split_into(&mut data, NODE_BINDINGS, &packed.nodes, gpu.per_binding::<GpuNode>(), "the BVH nodes", gpu)?;
+    split_into(&mut data, PRIM_BINDINGS, &packed.prims, gpu.per_binding::<GpuPrim>(), "the primitives", gpu)?;
+    Ok(data)
+}
+
+/// Puts `items` into the bindings `slots` of `data`, `per_binding` to each; refused if they
+/// need more than [`SPLIT`] bindings.
+fn split_into<'a, T: bytemuck::Pod>(
+    data: &mut [&'a [u8]; BUFFERS],
+    slots: [usize; SPLIT],
+    items: &'a [T],
+    per_binding: usize,
+    what: &str,
+    gpu: &Gpu,
+) -> Result<(), GpuError> {
+    let chunks: Vec<&[T]> = items.chunks(per_binding.max(1)).collect();
+    if chunks.len() > SPLIT {
+        return Err(GpuError::TooLarge(format!(
+            "{what} take {} MiB, more than the {SPLIT} storage bindings of {} MiB each that {} allows",
+            std::mem::size_of_val(items) >> 20,
+            gpu.max_binding >> 20,
+            gpu.info.name
+        )));
+    }
+    for (slot, chunk) in slots.into_iter().zip(chunks) {
+        data[slot] = bytemuck::cast_slice(chunk);
+    }
+    Ok(())
 }
 
 impl GpuScene {
@@ -335,7 +382,7 @@ impl GpuScene {
     }
 
     pub fn upload_packed(gpu: &Gpu, packed: &Packed, background: Background) -> Result<Self, GpuError> {
-        let data = contents(packed);
+        let data = contents(gpu, packed)?;
         let mut buffers = Vec::with_capacity(BUFFERS);
         for (name, bytes) in BUFFER_NAMES.iter().zip(data) {
             buffers.push(gpu.storage(name, bytes, wgpu::BufferUsages::COPY_DST)?);
@@ -354,7 +401,7 @@ impl GpuScene {
     /// larger ones where they do not; materials, textures and texture coordinates stay as they
     /// are. Returns without waiting for the GPU.
     pub fn update(&mut self, gpu: &Gpu, packed: &Packed) -> Result<(), GpuError> {
-        let data = contents(packed);
+        let data = contents(gpu, packed)?;
         // The larger buffers first, all of them: a failure leaves the scene as it was.
         let mut larger = Vec::new();
         for k in MOVING.into_iter().filter(|&k| data[k].len() as u64 > self.buffers[k].size()) {

@@ -132,8 +132,49 @@ const ROBUST_SLAB: f32 = 1.0 + 6.0 * EPSILON;
 // below it, a ray's open end is at it.
 const F32_MAX: f32 = 0x1.fffffep+127;
 
+// The tree's nodes and the primitives, each over up to four bindings: a large scene's arrays
+// exceed what one storage binding may see (lavapipe: 128 MiB). Binding k holds elements
+// k·N.. of N per binding (the pipeline's constants, from the adapter's limit).
 @group(0) @binding(0) var<storage, read> nodes: array<Node>;
 @group(0) @binding(1) var<storage, read> prims: array<Prim>;
+@group(0) @binding(10) var<storage, read> nodes1: array<Node>;
+@group(0) @binding(11) var<storage, read> nodes2: array<Node>;
+@group(0) @binding(12) var<storage, read> nodes3: array<Node>;
+@group(0) @binding(13) var<storage, read> prims1: array<Prim>;
+@group(0) @binding(14) var<storage, read> prims2: array<Prim>;
+@group(0) @binding(15) var<storage, read> prims3: array<Prim>;
+override nodes_per_binding: u32;
+override prims_per_binding: u32;
+
+fn node_at(i: u32) -> Node {
+    if i < nodes_per_binding {
+        return nodes[i];
+    }
+    let k = i / nodes_per_binding;
+    let j = i - k * nodes_per_binding;
+    if k == 1u {
+        return nodes1[j];
+    }
+    if k == 2u {
+        return nodes2[j];
+    }
+    return nodes3[j];
+}
+
+fn prim_at(i: u32) -> Prim {
+    if i < prims_per_binding {
+        return prims[i];
+    }
+    let k = i / prims_per_binding;
+    let j = i - k * prims_per_binding;
+    if k == 1u {
+        return prims1[j];
+    }
+    if k == 2u {
+        return prims2[j];
+    }
+    return prims3[j];
+}
 
 // A material (`GpuMaterial`): its `kind` (LAMBERTIAN, METAL, ...), `a` its albedo or emission;
 // metal: `b.x` fuzz, `b.y` 1 for RTIOW v3's fuzz in the ball; glass: `b.x` its index of
@@ -325,7 +366,7 @@ fn intersect_sphere(ray: Ray, center: vec3<f32>, radius: f32) -> f32 {
 // Tests primitive `slot` against `ray` and keeps it in `best` if it is closer (or as close
 // with a lower number); shrinks `ray.tmax` to the best distance.
 fn test_prim(slot: u32, ray: ptr<function, Ray>, best: ptr<function, Hit>) {
-    let prim = prims[slot];
+    let prim = prim_at(slot);
     let number = prim.number;
     var hit = vec3<f32>(F32_MAX, 0.0, 0.0);
     let bits = prim.material;
@@ -365,7 +406,7 @@ fn any_hit(ray: Ray) -> bool {
 fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
     var ray = ray0;
     var best = Hit(F32_MAX, 0.0, 0.0, NO_HIT, NO_HIT);
-    if box_entry(nodes[0], ray) == F32_MAX {
+    if box_entry(node_at(0u), ray) == F32_MAX {
         return best;
     }
     var stack_node: array<u32, STACK>;
@@ -373,7 +414,7 @@ fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
     var sp = 0u;
     var node = 0u;
     loop {
-        let n = nodes[node];
+        let n = node_at(node);
         let first = n.first;
         let count = n.count;
         var next = NO_HIT;
@@ -385,8 +426,8 @@ fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
                 }
             }
         } else {
-            let d0 = box_entry(nodes[first], ray);
-            let d1 = box_entry(nodes[first + 1u], ray);
+            let d0 = box_entry(node_at(first), ray);
+            let d1 = box_entry(node_at(first + 1u), ray);
             let hit0 = d0 < F32_MAX;
             let hit1 = d1 < F32_MAX;
             if hit0 && hit1 {

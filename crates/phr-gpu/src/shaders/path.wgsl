@@ -118,7 +118,7 @@ struct Surface {
 }
 
 fn surface_at(ray: Ray, hit: Hit) -> Surface {
-    let prim = prims[hit.slot];
+    let prim = prim_at(hit.slot);
     let bits = prim.material;
     var p: vec3<f32>;
     var n: vec3<f32>;
