@@ -1,5 +1,6 @@
 //! Finding a GPU (or lavapipe) and the few buffer chores every kernel shares.
 
+use crate::scene::Split;
 use wgpu::util::DeviceExt;
 
 /// Why the GPU tracer cannot run.
@@ -175,13 +176,15 @@ impl Gpu {
         (self.max_binding / std::mem::size_of::<T>() as u64).min(u64::from(u32::MAX)) as usize
     }
 
-    /// A compute pipeline running `entry` of the WGSL `source` with these bind group layouts.
+    /// A compute pipeline running `entry` of the WGSL `source` with these bind group layouts,
+    /// compiled for the scene's [`Split`].
     pub(crate) fn pipeline(
         &self,
         label: &str,
         source: &str,
         entry: &str,
         layouts: &[&wgpu::BindGroupLayout],
+        split: &Split,
     ) -> wgpu::ComputePipeline {
         let module = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(label),
@@ -199,10 +202,7 @@ impl Gpu {
             module: &module,
             entry_point: Some(entry),
             compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &[
-                    ("nodes_per_binding", self.per_binding::<crate::scene::GpuNode>() as f64),
-                    ("prims_per_binding", self.per_binding::<crate::scene::GpuPrim>() as f64),
-                ],
+                constants: &split.constants(),
                 ..Default::default()
             },
             cache: None,

@@ -2,7 +2,7 @@
 //! alone, without shading, to check it against the CPU's and to time it.
 
 use crate::device::{Binding, Gpu, GpuError};
-use crate::scene::{GpuScene, COMMON_WGSL};
+use crate::scene::{GpuScene, Split, COMMON_WGSL};
 use phr_bvh::Ray;
 
 const HITS_WGSL: &str = include_str!("shaders/hits.wgsl");
@@ -21,18 +21,22 @@ pub struct GpuHit {
     pub prim: u32,
 }
 
-/// The kernel, made once per scene layout.
+/// The kernel, made for a scene's layout and [`Split`].
 pub struct HitQueries {
     pipeline: wgpu::ComputePipeline,
+    split: Split,
     layout: wgpu::BindGroupLayout,
 }
 
 impl HitQueries {
     pub fn new(gpu: &Gpu, scene: &GpuScene) -> Self {
         let layout = gpu.layout("hit queries", &[Binding::Read, Binding::ReadWrite]);
+        Self { pipeline: Self::kernel(gpu, scene, &layout), split: scene.split, layout }
+    }
+
+    fn kernel(gpu: &Gpu, scene: &GpuScene, layout: &wgpu::BindGroupLayout) -> wgpu::ComputePipeline {
         let source = format!("{COMMON_WGSL}\n{HITS_WGSL}");
-        let pipeline = gpu.pipeline("hit queries", &source, "closest", &[&scene.layout, &layout]);
-        Self { pipeline, layout }
+        gpu.pipeline("hit queries", &source, "closest", &[&scene.layout, layout], &scene.split)
     }
 
     /// The closest hit of each ray in `[tmin, tmax]` (an infinite `tmax`: without end).
@@ -48,11 +52,19 @@ impl HitQueries {
         let input = gpu.storage("query rays", bytemuck::cast_slice(&queries), none)?;
         let answers = gpu.storage("query answers", &vec![0u8; rays.len() * 16], wgpu::BufferUsages::COPY_SRC)?;
         let group = gpu.bind("hit queries", &self.layout, &[&input, &answers]);
+        // A scene whose arrays moved to other bindings since (an update) needs its own kernel.
+        let recompiled;
+        let pipeline = if scene.split == self.split {
+            &self.pipeline
+        } else {
+            recompiled = Self::kernel(gpu, scene, &self.layout);
+            &recompiled
+        };
         let groups = (rays.len() as u32).div_ceil(GROUP);
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.pipeline);
+            pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &scene.group, &[]);
             pass.set_bind_group(1, &group, &[]);
             pass.dispatch_workgroups(groups.min(ROW), groups.div_ceil(ROW), 1);

@@ -285,6 +285,8 @@ pub struct GpuScene {
     pub(crate) group: wgpu::BindGroup,
     /// The group's bindings in order ([`BUFFER_NAMES`]).
     buffers: [wgpu::Buffer; BUFFERS],
+    /// How the nodes and the primitives lie across their bindings: kernels are compiled for it.
+    pub(crate) split: Split,
     pub background: Background,
     /// Light sampling: the sky's probability and the number of emitters that can be picked
     /// (`None`: the implicit estimator).
@@ -324,9 +326,30 @@ const SPLIT: usize = 4;
 /// weights.
 const MOVING: [usize; 10] = [0, 1, 3, 4, 10, 11, 12, 13, 14, 15];
 
-/// The bytes of each buffer of [`GpuScene`], in binding order: the nodes and the primitives
-/// cut into as many bindings as they need on `gpu` ([`Gpu::per_binding`]).
-fn contents<'a>(gpu: &Gpu, packed: &'a Packed) -> Result<[&'a [u8]; BUFFERS], GpuError> {
+/// How a scene's nodes and primitives lie across their bindings: what the kernels are compiled
+/// for (their pipeline constants, `node_at` and `prim_at` in `shaders/common.wgsl`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Split {
+    nodes_per_binding: usize,
+    prims_per_binding: usize,
+    node_bindings: usize,
+    prim_bindings: usize,
+}
+
+impl Split {
+    pub(crate) fn constants(&self) -> [(&'static str, f64); 4] {
+        [
+            ("nodes_per_binding", self.nodes_per_binding as f64),
+            ("prims_per_binding", self.prims_per_binding as f64),
+            ("node_bindings", self.node_bindings as f64),
+            ("prim_bindings", self.prim_bindings as f64),
+        ]
+    }
+}
+
+/// The bytes of each buffer of [`GpuScene`], in binding order, and how the nodes and the
+/// primitives are cut into as many bindings as they need on `gpu` ([`Gpu::per_binding`]).
+fn contents<'a>(gpu: &Gpu, packed: &'a Packed) -> Result<([&'a [u8]; BUFFERS], Split), GpuError> {
     let mut data: [&[u8]; BUFFERS] = [
         &[],
         &[],
@@ -345,13 +368,18 @@ fn contents<'a>(gpu: &Gpu, packed: &'a Packed) -> Result<[&'a [u8]; BUFFERS], Gp
         &[],
         &[],
     ];
-    split_into(&mut data, NODE_BINDINGS, &packed.nodes, gpu.per_binding::<GpuNode>(), "the BVH nodes", gpu)?;
-    split_into(&mut data, PRIM_BINDINGS, &packed.prims, gpu.per_binding::<GpuPrim>(), "the primitives", gpu)?;
-    Ok(data)
+    let (nodes_per_binding, prims_per_binding) = (gpu.per_binding::<GpuNode>(), gpu.per_binding::<GpuPrim>());
+    let split = Split {
+        nodes_per_binding,
+        prims_per_binding,
+        node_bindings: split_into(&mut data, NODE_BINDINGS, &packed.nodes, nodes_per_binding, "the BVH nodes", gpu)?,
+        prim_bindings: split_into(&mut data, PRIM_BINDINGS, &packed.prims, prims_per_binding, "the primitives", gpu)?,
+    };
+    Ok((data, split))
 }
 
-/// Puts `items` into the bindings `slots` of `data`, `per_binding` to each; refused if they
-/// need more than [`SPLIT`] bindings.
+/// Puts `items` into the bindings `slots` of `data`, `per_binding` to each; returns how many
+/// bindings that takes (at least one), refused if they need more than [`SPLIT`].
 fn split_into<'a, T: bytemuck::Pod>(
     data: &mut [&'a [u8]; BUFFERS],
     slots: [usize; SPLIT],
@@ -359,7 +387,7 @@ fn split_into<'a, T: bytemuck::Pod>(
     per_binding: usize,
     what: &str,
     gpu: &Gpu,
-) -> Result<(), GpuError> {
+) -> Result<usize, GpuError> {
     let chunks: Vec<&[T]> = items.chunks(per_binding.max(1)).collect();
     if chunks.len() > SPLIT {
         return Err(GpuError::TooLarge(format!(
@@ -369,10 +397,10 @@ fn split_into<'a, T: bytemuck::Pod>(
             gpu.info.name
         )));
     }
-    for (slot, chunk) in slots.into_iter().zip(chunks) {
+    for (slot, chunk) in slots.into_iter().zip(&chunks) {
         data[slot] = bytemuck::cast_slice(chunk);
     }
-    Ok(())
+    Ok(chunks.len().max(1))
 }
 
 impl GpuScene {
@@ -382,7 +410,7 @@ impl GpuScene {
     }
 
     pub fn upload_packed(gpu: &Gpu, packed: &Packed, background: Background) -> Result<Self, GpuError> {
-        let data = contents(gpu, packed)?;
+        let (data, split) = contents(gpu, packed)?;
         let mut buffers = Vec::with_capacity(BUFFERS);
         for (name, bytes) in BUFFER_NAMES.iter().zip(data) {
             buffers.push(gpu.storage(name, bytes, wgpu::BufferUsages::COPY_DST)?);
@@ -393,7 +421,7 @@ impl GpuScene {
         let bytes = data.iter().map(|d| d.len() as u64).sum();
         let lights = packed.sky_probability.map(|sky| (sky, packed.light_cdf.len() as u32));
         let environment = packed.environment;
-        Ok(Self { layout, group, buffers, background, lights, environment, bytes })
+        Ok(Self { layout, group, buffers, split, background, lights, environment, bytes })
     }
 
     /// Replaces the scene's contents with `packed` (the same scene moved: its tree, primitives
@@ -401,7 +429,7 @@ impl GpuScene {
     /// larger ones where they do not; materials, textures and texture coordinates stay as they
     /// are. Returns without waiting for the GPU.
     pub fn update(&mut self, gpu: &Gpu, packed: &Packed) -> Result<(), GpuError> {
-        let data = contents(gpu, packed)?;
+        let (data, split) = contents(gpu, packed)?;
         // The larger buffers first, all of them: a failure leaves the scene as it was.
         let mut larger = Vec::new();
         for k in MOVING.into_iter().filter(|&k| data[k].len() as u64 > self.buffers[k].size()) {
@@ -422,6 +450,7 @@ impl GpuScene {
             self.group = gpu.bind("scene", &self.layout, &self.buffers.each_ref());
         }
         self.bytes = bytes;
+        self.split = split;
         self.lights = packed.sky_probability.map(|sky| (sky, packed.light_cdf.len() as u32));
         Ok(())
     }

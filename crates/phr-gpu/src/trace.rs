@@ -3,7 +3,7 @@
 //! caller reads them back as a [`Film`].
 
 use crate::device::{Binding, Gpu, GpuError};
-use crate::scene::{GpuScene, COMMON_WGSL};
+use crate::scene::{GpuScene, Split, COMMON_WGSL};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use phr_render::camera::Camera;
@@ -48,6 +48,10 @@ fn lanes(v: Vec3) -> [f32; 4] {
 pub struct GpuTracer {
     gpu: Gpu,
     pipeline: wgpu::ComputePipeline,
+    /// The scene's split the kernel was compiled for, and the frame's bindings' layout (to
+    /// compile it again when a moved scene's arrays take other bindings).
+    split: Split,
+    layout: wgpu::BindGroupLayout,
     group: wgpu::BindGroup,
     frame: wgpu::Buffer,
     sum: wgpu::Buffer,
@@ -123,12 +127,30 @@ impl GpuTracer {
         let layout =
             gpu.layout("path tracer", &[Binding::Uniform, Binding::ReadWrite, Binding::ReadWrite, Binding::ReadWrite]);
         let group = gpu.bind("path tracer", &layout, &[&frame, &sum, &sum_sq, &rays]);
-        let source = format!("{COMMON_WGSL}\n{PATH_WGSL}\n{LIGHTS_WGSL}\n{ENVIRONMENT_WGSL}");
-        let pipeline = gpu.pipeline("path tracer", &source, "render", &[&scene.layout, &layout]);
-        let mut tracer =
-            Self { gpu: gpu.clone(), pipeline, group, frame, sum, sum_sq, rays, uniform, width, height, samples: 0 };
+        let pipeline = Self::kernel(gpu, scene, &layout);
+        let mut tracer = Self {
+            gpu: gpu.clone(),
+            pipeline,
+            split: scene.split,
+            layout,
+            group,
+            frame,
+            sum,
+            sum_sq,
+            rays,
+            uniform,
+            width,
+            height,
+            samples: 0,
+        };
         tracer.set_camera(camera);
         Ok(tracer)
+    }
+
+    /// The path tracer's kernel, compiled for `scene`'s [`Split`].
+    fn kernel(gpu: &Gpu, scene: &GpuScene, layout: &wgpu::BindGroupLayout) -> wgpu::ComputePipeline {
+        let source = format!("{COMMON_WGSL}\n{PATH_WGSL}\n{LIGHTS_WGSL}\n{ENVIRONMENT_WGSL}");
+        gpu.pipeline("path tracer", &source, "render", &[&scene.layout, layout], &scene.split)
     }
 
     /// Moves the camera (made for the tracer's size); the frames after see the new view. The
@@ -145,6 +167,10 @@ impl GpuTracer {
     /// moved: [`GpuScene::update`]), one sample per pixel each (frame `k` gives every pixel the
     /// sample the CPU's frame `k` gives it, up to rounding), and returns without waiting.
     pub fn render(&mut self, scene: &GpuScene, frames: std::ops::Range<u32>) {
+        if scene.split != self.split {
+            self.pipeline = Self::kernel(&self.gpu, scene, &self.layout);
+            self.split = scene.split;
+        }
         if let Some((sky, emitters)) = scene.lights {
             (self.uniform.sky_probability, self.uniform.light_count) = (sky, emitters);
         }

@@ -134,7 +134,9 @@ const F32_MAX: f32 = 0x1.fffffep+127;
 
 // The tree's nodes and the primitives, each over up to four bindings: a large scene's arrays
 // exceed what one storage binding may see (lavapipe: 128 MiB). Binding k holds elements
-// k·N.. of N per binding (the pipeline's constants, from the adapter's limit).
+// k·N.. of N per binding. The pipeline's constants (`Split`) say how many bindings each uses:
+// one, for most scenes, folds the accessors down to a plain load (the general form costs
+// lavapipe 30 % of a frame).
 @group(0) @binding(0) var<storage, read> nodes: array<Node>;
 @group(0) @binding(1) var<storage, read> prims: array<Prim>;
 @group(0) @binding(10) var<storage, read> nodes1: array<Node>;
@@ -145,9 +147,11 @@ const F32_MAX: f32 = 0x1.fffffep+127;
 @group(0) @binding(15) var<storage, read> prims3: array<Prim>;
 override nodes_per_binding: u32;
 override prims_per_binding: u32;
+override node_bindings: u32;
+override prim_bindings: u32;
 
 fn node_at(i: u32) -> Node {
-    if i < nodes_per_binding {
+    if node_bindings == 1u || i < nodes_per_binding {
         return nodes[i];
     }
     let k = i / nodes_per_binding;
@@ -162,7 +166,7 @@ fn node_at(i: u32) -> Node {
 }
 
 fn prim_at(i: u32) -> Prim {
-    if i < prims_per_binding {
+    if prim_bindings == 1u || i < prims_per_binding {
         return prims[i];
     }
     let k = i / prims_per_binding;
