@@ -1,6 +1,5 @@
 //! Finding a GPU (or lavapipe) and the few buffer chores every kernel shares.
 
-use crate::scene::Split;
 use wgpu::util::DeviceExt;
 
 /// Why the GPU tracer cannot run.
@@ -176,15 +175,15 @@ impl Gpu {
         (self.max_binding / std::mem::size_of::<T>() as u64).min(u64::from(u32::MAX)) as usize
     }
 
-    /// A compute pipeline running `entry` of the WGSL `source` with these bind group layouts,
-    /// compiled for the scene's [`Split`].
+    /// A compute pipeline running `entry` of the WGSL `source` with these bind group layouts
+    /// and values of its pipeline constants (a scene's `Split`).
     pub(crate) fn pipeline(
         &self,
         label: &str,
         source: &str,
         entry: &str,
         layouts: &[&wgpu::BindGroupLayout],
-        split: &Split,
+        constants: &[(&str, f64)],
     ) -> wgpu::ComputePipeline {
         let module = self.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(label),
@@ -201,10 +200,7 @@ impl Gpu {
             layout: Some(&layout),
             module: &module,
             entry_point: Some(entry),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &split.constants(),
-                ..Default::default()
-            },
+            compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
             cache: None,
         })
     }

@@ -36,7 +36,7 @@ impl HitQueries {
 
     fn kernel(gpu: &Gpu, scene: &GpuScene, layout: &wgpu::BindGroupLayout) -> wgpu::ComputePipeline {
         let source = format!("{COMMON_WGSL}\n{HITS_WGSL}");
-        gpu.pipeline("hit queries", &source, "closest", &[&scene.layout, layout], &scene.split)
+        gpu.pipeline("hit queries", &source, "closest", &[&scene.layout, layout], &scene.split.constants())
     }
 
     /// The closest hit of each ray in `[tmin, tmax]` (an infinite `tmax`: without end).

@@ -150,7 +150,7 @@ impl GpuTracer {
     /// The path tracer's kernel, compiled for `scene`'s [`Split`].
     fn kernel(gpu: &Gpu, scene: &GpuScene, layout: &wgpu::BindGroupLayout) -> wgpu::ComputePipeline {
         let source = format!("{COMMON_WGSL}\n{PATH_WGSL}\n{LIGHTS_WGSL}\n{ENVIRONMENT_WGSL}");
-        gpu.pipeline("path tracer", &source, "render", &[&scene.layout, layout], &scene.split)
+        gpu.pipeline("path tracer", &source, "render", &[&scene.layout, layout], &scene.split.constants())
     }
 
     /// Moves the camera (made for the tracer's size); the frames after see the new view. The
