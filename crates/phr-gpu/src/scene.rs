@@ -322,9 +322,14 @@ const NODE_BINDINGS: [usize; SPLIT] = [0, 10, 11, 12];
 const PRIM_BINDINGS: [usize; SPLIT] = [1, 13, 14, 15];
 /// Bindings an array may be split across.
 const SPLIT: usize = 4;
+/// The bindings of the emissive triangles and their weights.
+const LIGHT_BINDINGS: [usize; 2] = [3, 4];
+
 /// The buffers a moving scene changes ([`GpuScene::update`]): nodes, primitives, lights, light
 /// weights.
-const MOVING: [usize; 10] = [0, 1, 3, 4, 10, 11, 12, 13, 14, 15];
+fn moving() -> impl Iterator<Item = usize> {
+    NODE_BINDINGS.into_iter().chain(PRIM_BINDINGS).chain(LIGHT_BINDINGS)
+}
 
 /// How a scene's nodes and primitives lie across their bindings: what the kernels are compiled
 /// for (their pipeline constants, `node_at` and `prim_at` in `shaders/common.wgsl`).
@@ -432,7 +437,7 @@ impl GpuScene {
         let (data, split) = contents(gpu, packed)?;
         // The larger buffers first, all of them: a failure leaves the scene as it was.
         let mut larger = Vec::new();
-        for k in MOVING.into_iter().filter(|&k| data[k].len() as u64 > self.buffers[k].size()) {
+        for k in moving().filter(|&k| data[k].len() as u64 > self.buffers[k].size()) {
             larger.push((k, gpu.storage(BUFFER_NAMES[k], data[k], wgpu::BufferUsages::COPY_DST)?));
         }
         let rebound = !larger.is_empty();
@@ -440,7 +445,7 @@ impl GpuScene {
             self.buffers[k] = buffer;
         }
         let mut bytes = 0;
-        for k in MOVING {
+        for k in moving() {
             if data[k].len() as u64 <= self.buffers[k].size() && !data[k].is_empty() {
                 gpu.queue.write_buffer(&self.buffers[k], 0, data[k]);
             }

@@ -626,7 +626,9 @@ impl FramePipeline {
         if landed {
             self.landed_sah = self.sah;
         }
-        if self.sah <= self.rebuild_sah_growth * self.landed_sah || rebuilder.busy() {
+        // Written as "not grown" so that a NaN cost starts no rebuild.
+        let grown = self.sah > self.rebuild_sah_growth * self.landed_sah;
+        if !grown || rebuilder.busy() {
             return;
         }
         self.update_part_boxes(d, report);
