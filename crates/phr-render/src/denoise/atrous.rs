@@ -122,9 +122,14 @@ impl Signal {
         Vec3::new(self.colour[0][i], self.colour[1][i], self.colour[2][i])
     }
 
-    fn luminance(&self) -> Vec<f32> {
+    /// The luminance of each pixel, infinite off surfaces: a tap there gets an infinite
+    /// exponent, so the tap loop needs no test of its own for it.
+    fn luminance(&self, guide: &GuidePlanes) -> Vec<f32> {
         let [r, g, b] = &self.colour;
-        (r, g, b).into_par_iter().map(|(r, g, b)| luminance(Vec3::new(*r, *g, *b))).collect()
+        (r, g, b, &guide.footprint)
+            .into_par_iter()
+            .map(|(r, g, b, f)| if *f > 0.0 { luminance(Vec3::new(*r, *g, *b)) } else { f32::INFINITY })
+            .collect()
     }
 }
 
@@ -160,7 +165,7 @@ impl Atrous {
     /// One pass with taps `step` pixels apart.
     fn pass(&self, guide: &GuidePlanes, signal: &Signal, step: usize) -> Signal {
         let (w, h) = (guide.width, guide.height);
-        let lum = signal.luminance();
+        let lum = signal.luminance(guide);
         let blurred = blurred_variance(guide, &signal.var);
         let wide = SimdLevel::detect() == SimdLevel::Avx2;
         #[cfg(target_arch = "x86_64")]
@@ -301,7 +306,7 @@ impl Tap {
             [&guide.position[0][p.clone()], &guide.position[1][p.clone()], &guide.position[2][p.clone()]];
         let [qpx, qpy, qpz] =
             [&guide.position[0][q.clone()], &guide.position[1][q.clone()], &guide.position[2][q.clone()]];
-        let (plum, qlum, qfoot) = (&lum[p], &lum[q.clone()], &guide.footprint[q.clone()]);
+        let (plum, qlum) = (&lum[p], &lum[q.clone()]);
         let [qr, qg, qb] = [&signal.colour[0][q.clone()], &signal.colour[1][q.clone()], &signal.colour[2][q.clone()]];
         let qvar = &signal.var[q];
         let [sr, sg, sb] = &mut sums.colour;
@@ -315,13 +320,14 @@ impl Tap {
             for _ in 0..NORMAL_POWER {
                 normal *= normal;
             }
+            // (Not `n · q − n · p`: positions far from the origin would cancel.)
             let along_normal = pnx[i] * (qpx[i] - ppx[i]) + pny[i] * (qpy[i] - ppy[i]) + pnz[i] * (qpz[i] - ppz[i]);
             let plane = along_normal.abs() * plane_scale[i] * self.inv_distance;
             let light = (qlum[i] - plum[i]).abs() * luminance_scale[i];
             let exponent = plane + light;
             let falloff = normal * exp_neg(exponent.min(MAX_EXPONENT));
-            // Off-surface taps, and taps beyond e^-20 (or NaN), count for nothing.
-            let counts = qfoot[i] > 0.0 && exponent < MAX_EXPONENT && falloff > MIN_FALLOFF;
+            // Taps beyond e^-20 (or NaN), off-surface ones among them, count for nothing.
+            let counts = exponent < MAX_EXPONENT && falloff > MIN_FALLOFF;
             let weight = if counts { self.kernel * falloff } else { 0.0 };
             sr[i] += qr[i] * weight;
             sg[i] += qg[i] * weight;
@@ -451,7 +457,7 @@ mod tests {
         let var: Vec<f32> = (0..w * h).map(|_| 0.1 * rng.next_f32()).collect();
         let planes = GuidePlanes::new(&guide);
         let signal = Signal::new(&colour, var);
-        let lum = signal.luminance();
+        let lum = signal.luminance(&planes);
         let blurred = blurred_variance(&planes, &signal.var);
         let atrous = Atrous::default();
         let bits = |s: &RowSums| {
