@@ -16,6 +16,9 @@
 //! whole row, so the compiler vectorises the weights 8 pixels at a time; `exp` is a
 //! polynomial ([`exp_neg`]) for the same reason.
 
+use super::lanes::{exp_neg, Lanes, Scalar};
+#[cfg(target_arch = "x86_64")]
+use super::lanes::{Avx2, Avx512};
 use super::Guide;
 use glam::Vec3;
 use phr_bvh::SimdLevel;
@@ -58,32 +61,39 @@ const MIN_NORMAL_COS: f32 = 0.85;
 
 pub(crate) use crate::film::luminance;
 
-/// `e^-x` for `x` in `[0, MAX_EXPONENT]` within 10⁻⁵ relative: `2^y` with `y = −x·log2(e)`, from
-/// the exponent bits of `y`'s nearest integer and a degree-5 Taylor polynomial for the rest
-/// (in [−½, ½)). Plain arithmetic, so a row of taps vectorises (the library `exp` is a call
-/// per lane).
-#[inline(always)]
-pub(crate) fn exp_neg(x: f32) -> f32 {
-    // Adding and taking away 1.5·2^23 rounds to the nearest integer with plain SSE2 (`floor`
-    // is a library call below SSE4.1).
-    const ROUND: f32 = 12_582_912.0;
-    let y = (-x * std::f32::consts::LOG2_E).max(-126.0);
-    let whole = (y + ROUND) - ROUND;
-    let f = (y - whole) * std::f32::consts::LN_2;
-    let p = 1.0 + f * (1.0 + f * (0.5 + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0)))));
-    // `y + ROUND` holds the integer in its low mantissa bits: no float-to-int conversion
-    // (whose saturation checks are scalar).
-    let n = (y + ROUND).to_bits().wrapping_sub(ROUND.to_bits());
-    f32::from_bits(n.wrapping_add(127) << 23) * p
+/// Pixels of padding on each side of a row of the planes the taps read: the farthest tap of
+/// `passes` passes (2 steps of `2^(passes − 1)`) plus a chunk of the widest lanes, so that a
+/// chunk's taps never leave their row's memory. The padding is off every surface (an
+/// infinite luminance), so the taps there count for nothing.
+fn padding(passes: u32) -> usize {
+    2 * (1usize << passes.saturating_sub(1)) + MAX_LANES
 }
 
-/// Per-pixel planes of a frame's first surfaces: what every pass reads unchanged.
+/// The widest [`Lanes`] type's lanes.
+const MAX_LANES: usize = 16;
+
+/// `plane` (`width` values a row) with `pad` values of `fill` on each side of every row.
+fn padded(rows: usize, width: usize, pad: usize, fill: f32, value: impl Fn(usize) -> f32 + Sync) -> Vec<f32> {
+    let stride = width + 2 * pad;
+    let mut out = vec![fill; stride * rows];
+    out.par_chunks_mut(stride).enumerate().for_each(|(y, row)| {
+        for (x, v) in row[pad..pad + width].iter_mut().enumerate() {
+            *v = value(y * width + x);
+        }
+    });
+    out
+}
+
+/// Per-pixel planes of a frame's first surfaces: what every pass reads unchanged. The
+/// normals and positions are [`padded`] rows of `stride` values.
 pub(crate) struct GuidePlanes {
     pub width: usize,
     pub height: usize,
+    pad: usize,
+    stride: usize,
     normal: [Vec<f32>; 3],
     position: [Vec<f32>; 3],
-    /// 0: not a surface to filter ([`Guide::footprint`]).
+    /// 0: not a surface to filter ([`Guide::footprint`]); not padded.
     footprint: Vec<f32>,
     /// The surface mask (1 on surfaces) under [`blur_3x3`]: the weights that normalise each
     /// pass's blurred variance, the same for every pass.
@@ -91,13 +101,17 @@ pub(crate) struct GuidePlanes {
 }
 
 impl GuidePlanes {
-    pub fn new(guide: &Guide) -> Self {
-        let plane = |v: &[Vec3], c: usize| v.par_iter().map(|p| p[c]).collect::<Vec<f32>>();
+    /// The planes for up to `passes` passes.
+    pub fn new(guide: &Guide, passes: u32) -> Self {
         let (width, height) = (guide.width as usize, guide.height as usize);
+        let pad = padding(passes);
+        let plane = |v: &[Vec3], c: usize| padded(height, width, pad, 0.0, |i| v[i][c]);
         let surface: Vec<f32> = guide.footprint.par_iter().map(|f| if *f > 0.0 { 1.0 } else { 0.0 }).collect();
         Self {
             width,
             height,
+            pad,
+            stride: width + 2 * pad,
             normal: [plane(&guide.normal, 0), plane(&guide.normal, 1), plane(&guide.normal, 2)],
             position: [plane(&guide.position, 0), plane(&guide.position, 1), plane(&guide.position, 2)],
             footprint: guide.footprint.clone(),
@@ -121,23 +135,38 @@ impl Signal {
     pub fn get(&self, i: usize) -> Vec3 {
         Vec3::new(self.colour[0][i], self.colour[1][i], self.colour[2][i])
     }
+}
 
-    /// The luminance of each pixel, infinite off surfaces: a tap there gets an infinite
-    /// exponent, so the tap loop needs no test of its own for it.
-    fn luminance(&self, guide: &GuidePlanes) -> Vec<f32> {
-        let [r, g, b] = &self.colour;
-        (r, g, b, &guide.footprint)
-            .into_par_iter()
-            .map(|(r, g, b, f)| if *f > 0.0 { luminance(Vec3::new(*r, *g, *b)) } else { f32::INFINITY })
-            .collect()
+/// A pass's signal as its taps read it: [`padded`] like the guide's planes, with the
+/// luminance, which is infinite off surfaces and in the padding (a tap there gets an infinite
+/// exponent, so the tap loop needs no test of its own for it).
+struct TapSignal {
+    colour: [Vec<f32>; 3],
+    var: Vec<f32>,
+    lum: Vec<f32>,
+}
+
+impl TapSignal {
+    fn new(guide: &GuidePlanes, signal: &Signal) -> Self {
+        let (w, h, pad) = (guide.width, guide.height, guide.pad);
+        let plane = |p: &[f32]| padded(h, w, pad, 0.0, |i| p[i]);
+        let [r, g, b] = &signal.colour;
+        let lum = padded(h, w, pad, f32::INFINITY, |i| {
+            if guide.footprint[i] > 0.0 {
+                luminance(Vec3::new(r[i], g[i], b[i]))
+            } else {
+                f32::INFINITY
+            }
+        });
+        Self { colour: [plane(r), plane(g), plane(b)], var: plane(&signal.var), lum }
     }
 }
 
-/// What [`Atrous::row`] reads: the guide, the signal, its luminance and blurred variance, the
-/// row and the step.
-type RowArgs<'a> = (&'a GuidePlanes, &'a Signal, &'a [f32], &'a [f32], usize, usize);
+/// What [`Atrous::row`] reads: the guide, the pass's signal and blurred variance, the row and
+/// the step.
+type RowArgs<'a> = (&'a GuidePlanes, &'a TapSignal, &'a [f32], usize, usize);
 
-/// Row `y`'s accumulators of a tap loop.
+/// Row `y`'s sums over its taps.
 struct RowSums {
     colour: [Vec<f32>; 3],
     var: Vec<f32>,
@@ -146,7 +175,8 @@ struct RowSums {
 
 impl Atrous {
     /// Runs the passes over `signal`; `after_first(&signal)` sees the result of the first pass
-    /// (SVGF keeps it as the temporal history).
+    /// (SVGF keeps it as the temporal history). `guide` must have been made for at least
+    /// this filter's passes.
     pub(crate) fn filter(
         &self,
         guide: &GuidePlanes,
@@ -165,7 +195,7 @@ impl Atrous {
     /// One pass with taps `step` pixels apart.
     fn pass(&self, guide: &GuidePlanes, signal: &Signal, step: usize) -> Signal {
         let (w, h) = (guide.width, guide.height);
-        let lum = signal.luminance(guide);
+        let taps = TapSignal::new(guide, signal);
         let blurred = blurred_variance(guide, &signal.var);
         let wide = SimdLevel::detect() == SimdLevel::Avx2;
         #[cfg(target_arch = "x86_64")]
@@ -177,7 +207,7 @@ impl Atrous {
         let rows =
             (out_r.par_chunks_mut(w), out_g.par_chunks_mut(w), out_b.par_chunks_mut(w), out.var.par_chunks_mut(w));
         rows.into_par_iter().enumerate().for_each(|(y, (r, g, b, var))| {
-            let args = (guide, signal, &lum[..], &blurred[..], y, step);
+            let args = (guide, &taps, &blurred[..], y, step);
             let sums = if widest {
                 // SAFETY: the CPU has AVX-512 F (checked above).
                 unsafe { self.row_avx512(args) }
@@ -185,7 +215,7 @@ impl Atrous {
                 // SAFETY: the CPU has AVX2 (checked above).
                 unsafe { self.row_avx2(args) }
             } else {
-                self.row(args)
+                self.row_portable(args)
             };
             for (x, (((r, g), b), var)) in r.iter_mut().zip(g.iter_mut()).zip(b.iter_mut()).zip(var).enumerate() {
                 let i = y * w + x;
@@ -202,139 +232,135 @@ impl Atrous {
         out
     }
 
-    /// [`Atrous::row`] compiled for AVX2 (8 taps at a time).
+    /// [`Atrous::row`] one pixel at a time.
+    fn row_portable(&self, args: RowArgs) -> RowSums {
+        // SAFETY: `Scalar` needs no CPU feature.
+        unsafe { self.row::<Scalar>(args) }
+    }
+
+    /// [`Atrous::row`] 8 pixels at a time.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn row_avx2(&self, args: RowArgs) -> RowSums {
-        self.row(args)
+        // SAFETY: compiled for AVX2, which `Avx2` needs.
+        unsafe { self.row::<Avx2>(args) }
     }
 
-    /// [`Atrous::row`] compiled for AVX-512 (16 taps at a time). Nothing is fused (Rust does
-    /// not contract `a * b + c`), so it gives the AVX2 version's bits.
+    /// [`Atrous::row`] 16 pixels at a time.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
     fn row_avx512(&self, args: RowArgs) -> RowSums {
-        self.row(args)
+        // SAFETY: compiled for AVX-512 F, which `Avx512` needs.
+        unsafe { self.row::<Avx512>(args) }
     }
 
     /// Never called: there is no AVX-512 off x86-64.
     #[cfg(not(target_arch = "x86_64"))]
     unsafe fn row_avx512(&self, args: RowArgs) -> RowSums {
-        self.row(args)
+        self.row_portable(args)
     }
 
     /// Never called: [`SimdLevel::detect`] finds no AVX2 off x86-64.
     #[cfg(not(target_arch = "x86_64"))]
     unsafe fn row_avx2(&self, args: RowArgs) -> RowSums {
-        self.row(args)
+        self.row_portable(args)
     }
 
-    /// The sums of row `y`'s 25 taps, each over the whole row.
+    /// The sums of row `y`'s taps, `V::N` centre pixels at a time: their data and their sums
+    /// stay in registers while the 25 taps are added in turn.
+    ///
+    /// # Safety
+    /// The CPU must have what `V`'s operations use (see [`Lanes`]).
     #[inline(always)]
-    fn row(&self, (guide, signal, lum, blurred, y, step): RowArgs) -> RowSums {
-        let (w, h) = (guide.width, guide.height);
-        let row = y * w..(y + 1) * w;
+    unsafe fn row<V: Lanes>(&self, (guide, taps, blurred, y, step): RowArgs) -> RowSums {
+        let (w, h, stride, pad) = (guide.width, guide.height, guide.stride, guide.pad);
+        // Every plane the taps read holds `h` padded rows, and the farthest tap of a chunk
+        // stays within its row's padding (the loads below rely on both).
+        let len = stride * h;
+        assert!(2 * 2 * step + MAX_LANES <= 2 * pad, "the guide was made for fewer passes");
+        assert!(taps.lum.len() == len && taps.var.len() == len && taps.colour.iter().all(|p| p.len() == len));
+        assert!(guide.normal.iter().chain(&guide.position).all(|p| p.len() == len));
+        let lanes = w.div_ceil(V::N) * V::N;
         // Per centre pixel: 1 / (σl σ(l)), and 1 / (σp footprint step) (0 off surfaces,
-        // whose result is not used).
-        let luminance_scale: Vec<f32> =
-            blurred[row.clone()].iter().map(|v| 1.0 / (self.sigma_luminance * v.sqrt() + 1e-6)).collect();
-        let plane_scale: Vec<f32> = guide.footprint[row.clone()]
-            .iter()
-            .map(|f| if *f > 0.0 { 1.0 / (self.sigma_plane * f * step as f32) } else { 0.0 })
-            .collect();
-        let mut sums =
-            RowSums { colour: [vec![0.0; w], vec![0.0; w], vec![0.0; w]], var: vec![0.0; w], weight: vec![0.0; w] };
+        // whose result is not used, and past the row's end).
+        let mut luminance_scale = vec![0.0f32; lanes];
+        let mut plane_scale = vec![0.0f32; lanes];
+        for x in 0..w {
+            let i = y * w + x;
+            luminance_scale[x] = 1.0 / (self.sigma_luminance * blurred[i].sqrt() + 1e-6);
+            let f = guide.footprint[i];
+            plane_scale[x] = if f > 0.0 { 1.0 / (self.sigma_plane * f * step as f32) } else { 0.0 };
+        }
+        // The taps whose row lies in the image: kernel weight, 1 / offset length in steps
+        // (the plane distance is per step of offset), offset in the padded planes.
+        let mut tap_list = Vec::with_capacity(25);
         for (dy, ky) in (-2..=2isize).zip(KERNEL) {
-            let qy = y as isize + dy * step as isize;
-            if !(0..h as isize).contains(&qy) {
+            if !(0..h as isize).contains(&(y as isize + dy * step as isize)) {
                 continue;
             }
             for (dx, kx) in (-2..=2isize).zip(KERNEL) {
-                let offset = dx * step as isize;
-                let tap = Tap { kernel: kx * ky, inv_distance: 1.0 / ((dx * dx + dy * dy) as f32).sqrt().max(1.0) };
-                // Centre pixels x whose tap x + offset lies in the image.
-                let lo = (-offset).clamp(0, w as isize) as usize;
-                let hi = (w as isize - offset.max(0)).max(0) as usize;
-                if lo >= hi {
-                    // Steps wider than the image.
-                    continue;
-                }
-                let q0 = (qy as usize * w) as isize + offset;
-                let q = (q0 + lo as isize) as usize..(q0 + hi as isize) as usize;
-                let p = y * w + lo..y * w + hi;
-                tap.accumulate(
-                    guide,
-                    signal,
-                    lum,
-                    (p, q),
-                    (&luminance_scale[lo..hi], &plane_scale[lo..hi]),
-                    &mut sums,
-                    lo..hi,
-                );
+                let inv_distance = 1.0 / ((dx * dx + dy * dy) as f32).sqrt().max(1.0);
+                tap_list.push((kx * ky, inv_distance, (dy * stride as isize + dx) * step as isize));
             }
+        }
+        let mut sums = RowSums {
+            colour: [vec![0.0; lanes], vec![0.0; lanes], vec![0.0; lanes]],
+            var: vec![0.0; lanes],
+            weight: vec![0.0; lanes],
+        };
+        // SAFETY: a chunk reads `V::N ≤ MAX_LANES` values from padded index `c + offset`:
+        // `c = y·stride + pad + x0` with `x0 < w`, and the offset moves it to a row in the
+        // image (checked above) and at most `2·step` pixels across, which the padding holds
+        // (asserted above); the row arrays hold `lanes` values, whole chunks. The CPU has
+        // `V`'s features (the caller's promise).
+        unsafe {
+            let at = |plane: &[f32], i: usize| V::load(plane.as_ptr().add(i));
+            let [nx, ny, nz] = &guide.normal;
+            let [px, py, pz] = &guide.position;
+            let [r, g, b] = &taps.colour;
+            let zero = V::splat(0.0);
+            for x0 in (0..w).step_by(V::N) {
+                let c = y * stride + pad + x0;
+                let (pnx, pny, pnz) = (at(nx, c), at(ny, c), at(nz, c));
+                let (ppx, ppy, ppz) = (at(px, c), at(py, c), at(pz, c));
+                let plum = at(&taps.lum, c);
+                let (lscale, pscale) = (at(&luminance_scale, x0), at(&plane_scale, x0));
+                let (mut sr, mut sg, mut sb, mut sv, mut sw) = (zero, zero, zero, zero, zero);
+                for &(kernel, inv_distance, offset) in &tap_list {
+                    let q = c.wrapping_add_signed(offset);
+                    let cos = pnx.mul(at(nx, q)).add(pny.mul(at(ny, q))).add(pnz.mul(at(nz, q)));
+                    // From at least MIN_NORMAL_COS, so that the powers stay normal floats.
+                    let mut normal = cos.max(V::splat(MIN_NORMAL_COS));
+                    for _ in 0..NORMAL_POWER {
+                        normal = normal.mul(normal);
+                    }
+                    let along_normal =
+                        pnx.mul(at(px, q).sub(ppx)).add(pny.mul(at(py, q).sub(ppy))).add(pnz.mul(at(pz, q).sub(ppz)));
+                    let plane = along_normal.abs().mul(pscale).mul(V::splat(inv_distance));
+                    let light = at(&taps.lum, q).sub(plum).abs().mul(lscale);
+                    let exponent = plane.add(light);
+                    let falloff = normal.mul(exp_neg(exponent.min(V::splat(MAX_EXPONENT))));
+                    // Taps beyond e^-20 (or NaN), off-surface ones among them, count for nothing.
+                    let counts = V::and(exponent.lt(V::splat(MAX_EXPONENT)), falloff.gt(V::splat(MIN_FALLOFF)));
+                    let weight = V::splat(kernel).mul(falloff).keep(counts);
+                    sr = sr.add(at(r, q).mul(weight));
+                    sg = sg.add(at(g, q).mul(weight));
+                    sb = sb.add(at(b, q).mul(weight));
+                    sv = sv.add(at(&taps.var, q).mul(weight).mul(weight));
+                    sw = sw.add(weight);
+                }
+                let [out_r, out_g, out_b] = &mut sums.colour;
+                sr.store(out_r.as_mut_ptr().add(x0));
+                sg.store(out_g.as_mut_ptr().add(x0));
+                sb.store(out_b.as_mut_ptr().add(x0));
+                sv.store(sums.var.as_mut_ptr().add(x0));
+                sw.store(sums.weight.as_mut_ptr().add(x0));
+            }
+        }
+        for plane in sums.colour.iter_mut().chain([&mut sums.var, &mut sums.weight]) {
+            plane.truncate(w);
         }
         sums
-    }
-}
-
-/// One of the 25 taps of a pass.
-struct Tap {
-    kernel: f32,
-    /// 1 / the tap's offset length in steps (the plane distance is per step of offset).
-    inv_distance: f32,
-}
-
-impl Tap {
-    /// Adds this tap's contribution to centre pixels `p` (row positions `row`) from pixels
-    /// `q` (same length).
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    fn accumulate(
-        &self,
-        guide: &GuidePlanes,
-        signal: &Signal,
-        lum: &[f32],
-        (p, q): (std::ops::Range<usize>, std::ops::Range<usize>),
-        (luminance_scale, plane_scale): (&[f32], &[f32]),
-        sums: &mut RowSums,
-        row: std::ops::Range<usize>,
-    ) {
-        let n = row.len();
-        let [pnx, pny, pnz] = [&guide.normal[0][p.clone()], &guide.normal[1][p.clone()], &guide.normal[2][p.clone()]];
-        let [qnx, qny, qnz] = [&guide.normal[0][q.clone()], &guide.normal[1][q.clone()], &guide.normal[2][q.clone()]];
-        let [ppx, ppy, ppz] =
-            [&guide.position[0][p.clone()], &guide.position[1][p.clone()], &guide.position[2][p.clone()]];
-        let [qpx, qpy, qpz] =
-            [&guide.position[0][q.clone()], &guide.position[1][q.clone()], &guide.position[2][q.clone()]];
-        let (plum, qlum) = (&lum[p], &lum[q.clone()]);
-        let [qr, qg, qb] = [&signal.colour[0][q.clone()], &signal.colour[1][q.clone()], &signal.colour[2][q.clone()]];
-        let qvar = &signal.var[q];
-        let [sr, sg, sb] = &mut sums.colour;
-        let (sr, sg, sb) = (&mut sr[row.clone()], &mut sg[row.clone()], &mut sb[row.clone()]);
-        let (sv, sw) = (&mut sums.var[row.clone()], &mut sums.weight[row]);
-        let (luminance_scale, plane_scale) = (&luminance_scale[..n], &plane_scale[..n]);
-        for i in 0..n {
-            // From at least MIN_NORMAL_COS, so that the powers stay normal floats.
-            let cos = pnx[i] * qnx[i] + pny[i] * qny[i] + pnz[i] * qnz[i];
-            let mut normal = cos.max(MIN_NORMAL_COS);
-            for _ in 0..NORMAL_POWER {
-                normal *= normal;
-            }
-            // (Not `n · q − n · p`: positions far from the origin would cancel.)
-            let along_normal = pnx[i] * (qpx[i] - ppx[i]) + pny[i] * (qpy[i] - ppy[i]) + pnz[i] * (qpz[i] - ppz[i]);
-            let plane = along_normal.abs() * plane_scale[i] * self.inv_distance;
-            let light = (qlum[i] - plum[i]).abs() * luminance_scale[i];
-            let exponent = plane + light;
-            let falloff = normal * exp_neg(exponent.min(MAX_EXPONENT));
-            // Taps beyond e^-20 (or NaN), off-surface ones among them, count for nothing.
-            let counts = exponent < MAX_EXPONENT && falloff > MIN_FALLOFF;
-            let weight = if counts { self.kernel * falloff } else { 0.0 };
-            sr[i] += qr[i] * weight;
-            sg[i] += qg[i] * weight;
-            sb[i] += qb[i] * weight;
-            sv[i] += qvar[i] * weight * weight;
-            sw[i] += weight;
-        }
     }
 }
 
@@ -391,7 +417,7 @@ impl Atrous {
                 sd * sd
             })
             .collect();
-        let out = self.filter(&GuidePlanes::new(guide), Signal::new(&illumination, var), |_| {});
+        let out = self.filter(&GuidePlanes::new(guide, self.passes), Signal::new(&illumination, var), |_| {});
         (0..n).map(|i| if guide.footprint[i] > 0.0 { out.get(i) * albedo[i] } else { colour[i] }).collect()
     }
 }
@@ -455,9 +481,9 @@ mod tests {
         }
         let colour: Vec<Vec3> = (0..w * h).map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32())).collect();
         let var: Vec<f32> = (0..w * h).map(|_| 0.1 * rng.next_f32()).collect();
-        let planes = GuidePlanes::new(&guide);
+        let planes = GuidePlanes::new(&guide, 5);
         let signal = Signal::new(&colour, var);
-        let lum = signal.luminance(&planes);
+        let taps = TapSignal::new(&planes, &signal);
         let blurred = blurred_variance(&planes, &signal.var);
         let atrous = Atrous::default();
         let bits = |s: &RowSums| {
@@ -466,8 +492,8 @@ mod tests {
         let mut compared = 0;
         for step in [1, 2, 4, 16] {
             for y in 0..h as usize {
-                let args = (&planes, &signal, &lum[..], &blurred[..], y, step);
-                let plain = bits(&atrous.row(args));
+                let args = (&planes, &taps, &blurred[..], y, step);
+                let plain = bits(&atrous.row_portable(args));
                 assert!(plain.iter().any(|&b| b != 0), "row {y}, step {step}: nothing summed");
                 #[cfg(target_arch = "x86_64")]
                 {
@@ -588,14 +614,5 @@ mod tests {
         let out = Atrous::default().denoise(&colour, &var, &guide);
         assert_eq!(out[..W as usize], colour[..W as usize]);
         assert_ne!(out[W as usize..], colour[W as usize..]);
-    }
-
-    #[test]
-    fn exp_neg_is_exp() {
-        for i in 0..=20_000 {
-            let x = i as f32 * 1e-3;
-            let (ours, exact) = (exp_neg(x), (-x).exp());
-            assert!((ours - exact).abs() <= 1e-5 * exact, "e^-{x}: {ours} vs {exact}");
-        }
     }
 }

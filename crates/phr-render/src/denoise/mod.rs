@@ -11,6 +11,7 @@
 //! - [`oidn`]: Intel Open Image Denoise, behind the cargo feature `oidn`.
 
 mod atrous;
+mod lanes;
 pub mod oidn;
 mod temporal;
 

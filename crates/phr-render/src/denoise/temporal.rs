@@ -130,7 +130,7 @@ impl Temporal {
             })
             .collect();
         let variance = self.variance(guide, &blended);
-        let planes = GuidePlanes::new(guide);
+        let planes = GuidePlanes::new(guide, self.atrous.passes);
         let illumination: Vec<Vec3> = blended.par_iter().map(|b| b.illumination).collect();
         let mut first_pass = None;
         let out = self.atrous.filter(&planes, Signal::new(&illumination, variance), |s| {
