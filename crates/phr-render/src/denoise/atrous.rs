@@ -115,56 +115,56 @@ impl GuidePlanes {
             normal: [plane(&guide.normal, 0), plane(&guide.normal, 1), plane(&guide.normal, 2)],
             position: [plane(&guide.position, 0), plane(&guide.position, 1), plane(&guide.position, 2)],
             footprint: guide.footprint.clone(),
-            surface_blurred: blur_3x3(&surface, width, height),
+            surface_blurred: blur_3x3(&surface, width, height, 0),
         }
     }
 }
 
-/// What a pass filters: the illumination (three planes) and the variance of its luminance.
+/// What a pass filters: the illumination (three planes), the variance of its luminance (0
+/// off surfaces), and the luminance itself (infinite off surfaces: a tap there gets an
+/// infinite exponent, so the tap loop needs no test of its own for it). [`padded`] like the
+/// guide's planes (the padding off every surface), so that a pass's output is the next
+/// pass's input as it is.
 pub(crate) struct Signal {
-    pub colour: [Vec<f32>; 3],
-    pub var: Vec<f32>,
-}
-
-impl Signal {
-    pub fn new(illumination: &[Vec3], var: Vec<f32>) -> Self {
-        let plane = |c: usize| illumination.par_iter().map(|p| p[c]).collect::<Vec<f32>>();
-        Self { colour: [plane(0), plane(1), plane(2)], var }
-    }
-
-    pub fn get(&self, i: usize) -> Vec3 {
-        Vec3::new(self.colour[0][i], self.colour[1][i], self.colour[2][i])
-    }
-}
-
-/// A pass's signal as its taps read it: [`padded`] like the guide's planes, with the
-/// luminance, which is infinite off surfaces and in the padding (a tap there gets an infinite
-/// exponent, so the tap loop needs no test of its own for it).
-struct TapSignal {
     colour: [Vec<f32>; 3],
     var: Vec<f32>,
     lum: Vec<f32>,
+    width: usize,
+    pad: usize,
 }
 
-impl TapSignal {
-    fn new(guide: &GuidePlanes, signal: &Signal) -> Self {
+impl Signal {
+    /// The signal of pixels `illumination` with luminance variances `var`, laid out for
+    /// `guide`.
+    pub fn new(guide: &GuidePlanes, illumination: &[Vec3], var: &[f32]) -> Self {
         let (w, h, pad) = (guide.width, guide.height, guide.pad);
-        let plane = |p: &[f32]| padded(h, w, pad, 0.0, |i| p[i]);
-        let [r, g, b] = &signal.colour;
-        let lum = padded(h, w, pad, f32::INFINITY, |i| {
-            if guide.footprint[i] > 0.0 {
-                luminance(Vec3::new(r[i], g[i], b[i]))
-            } else {
-                f32::INFINITY
-            }
-        });
-        Self { colour: [plane(r), plane(g), plane(b)], var: plane(&signal.var), lum }
+        let on = |i: usize| guide.footprint[i] > 0.0;
+        let plane = |c: usize| padded(h, w, pad, 0.0, |i| illumination[i][c]);
+        Self {
+            colour: [plane(0), plane(1), plane(2)],
+            // (`max` also makes NaN 0.)
+            var: padded(h, w, pad, 0.0, |i| if on(i) { var[i].max(0.0) } else { 0.0 }),
+            lum: padded(h, w, pad, f32::INFINITY, |i| if on(i) { luminance(illumination[i]) } else { f32::INFINITY }),
+            width: w,
+            pad,
+        }
+    }
+
+    /// Pixel `i` (row-major, unpadded).
+    pub fn get(&self, i: usize) -> Vec3 {
+        let j = self.padded_index(i);
+        Vec3::new(self.colour[0][j], self.colour[1][j], self.colour[2][j])
+    }
+
+    fn padded_index(&self, i: usize) -> usize {
+        let (y, x) = (i / self.width, i % self.width);
+        y * (self.width + 2 * self.pad) + self.pad + x
     }
 }
 
 /// What [`Atrous::row`] reads: the guide, the pass's signal and blurred variance, the row and
 /// the step.
-type RowArgs<'a> = (&'a GuidePlanes, &'a TapSignal, &'a [f32], usize, usize);
+type RowArgs<'a> = (&'a GuidePlanes, &'a Signal, &'a [f32], usize, usize);
 
 /// Row `y`'s sums over its taps.
 struct RowSums {
@@ -194,20 +194,32 @@ impl Atrous {
 
     /// One pass with taps `step` pixels apart.
     fn pass(&self, guide: &GuidePlanes, signal: &Signal, step: usize) -> Signal {
-        let (w, h) = (guide.width, guide.height);
-        let taps = TapSignal::new(guide, signal);
-        let blurred = blurred_variance(guide, &signal.var);
+        let (w, h, pad) = (guide.width, guide.height, guide.pad);
+        let stride = w + 2 * pad;
+        let blurred = blurred_variance(guide, signal);
         let wide = SimdLevel::detect() == SimdLevel::Avx2;
         #[cfg(target_arch = "x86_64")]
         let widest = wide && std::arch::is_x86_feature_detected!("avx512f");
         #[cfg(not(target_arch = "x86_64"))]
         let widest = false;
-        let mut out = Signal { colour: [vec![0.0; w * h], vec![0.0; w * h], vec![0.0; w * h]], var: vec![0.0; w * h] };
+        let plane = |fill| vec![fill; stride * h];
+        let mut out = Signal {
+            colour: [plane(0.0), plane(0.0), plane(0.0)],
+            var: plane(0.0),
+            lum: plane(f32::INFINITY),
+            width: w,
+            pad,
+        };
         let [out_r, out_g, out_b] = &mut out.colour;
-        let rows =
-            (out_r.par_chunks_mut(w), out_g.par_chunks_mut(w), out_b.par_chunks_mut(w), out.var.par_chunks_mut(w));
-        rows.into_par_iter().enumerate().for_each(|(y, (r, g, b, var))| {
-            let args = (guide, &taps, &blurred[..], y, step);
+        let rows = (
+            out_r.par_chunks_mut(stride),
+            out_g.par_chunks_mut(stride),
+            out_b.par_chunks_mut(stride),
+            out.var.par_chunks_mut(stride),
+            out.lum.par_chunks_mut(stride),
+        );
+        rows.into_par_iter().enumerate().for_each(|(y, (r, g, b, var, lum))| {
+            let args = (guide, signal, &blurred[..], y, step);
             let sums = if widest {
                 // SAFETY: the CPU has AVX-512 F (checked above).
                 unsafe { self.row_avx512(args) }
@@ -217,15 +229,17 @@ impl Atrous {
             } else {
                 self.row_portable(args)
             };
-            for (x, (((r, g), b), var)) in r.iter_mut().zip(g.iter_mut()).zip(b.iter_mut()).zip(var).enumerate() {
-                let i = y * w + x;
+            for x in 0..w {
+                let (i, j) = (y * w + x, y * stride + pad + x);
+                let k = pad + x;
                 if guide.footprint[i] > 0.0 {
                     let total = sums.weight[x];
-                    (*r, *g, *b) = (sums.colour[0][x] / total, sums.colour[1][x] / total, sums.colour[2][x] / total);
-                    *var = sums.var[x] / (total * total);
+                    (r[k], g[k], b[k]) =
+                        (sums.colour[0][x] / total, sums.colour[1][x] / total, sums.colour[2][x] / total);
+                    var[k] = sums.var[x] / (total * total);
+                    lum[k] = luminance(Vec3::new(r[k], g[k], b[k]));
                 } else {
-                    (*r, *g, *b) = (signal.colour[0][i], signal.colour[1][i], signal.colour[2][i]);
-                    *var = signal.var[i];
+                    (r[k], g[k], b[k]) = (signal.colour[0][j], signal.colour[1][j], signal.colour[2][j]);
                 }
             }
         });
@@ -366,19 +380,18 @@ impl Atrous {
 
 /// The variance smoothed by a 3×3 Gaussian over surface pixels, as SVGF does before each pass:
 /// one pixel's variance estimate from few samples is itself noisy.
-fn blurred_variance(guide: &GuidePlanes, var: &[f32]) -> Vec<f32> {
-    let masked: Vec<f32> =
-        var.par_iter().zip(&guide.footprint).map(|(v, f)| if *f > 0.0 { v.max(0.0) } else { 0.0 }).collect();
-    let sum = blur_3x3(&masked, guide.width, guide.height);
+fn blurred_variance(guide: &GuidePlanes, signal: &Signal) -> Vec<f32> {
+    let sum = blur_3x3(&signal.var, guide.width, guide.height, guide.pad);
     sum.par_iter().zip(&guide.surface_blurred).map(|(s, t)| if *t > 0.0 { s / t } else { 0.0 }).collect()
 }
 
-/// `plane` (`w × h`, row-major) under the separable 3×3 kernel (¼, ½, ¼)², zero outside;
-/// rows in parallel.
-fn blur_3x3(plane: &[f32], w: usize, h: usize) -> Vec<f32> {
+/// `plane` (`w × h`, rows of `w` values with `pad` more on each side) under the separable 3×3
+/// kernel (¼, ½, ¼)², zero outside; rows in parallel. The result is not padded.
+fn blur_3x3(plane: &[f32], w: usize, h: usize, pad: usize) -> Vec<f32> {
     const GAUSS: [f32; 3] = [0.25, 0.5, 0.25];
     let mut across = vec![0.0; w * h];
-    across.par_chunks_mut(w).zip(plane.par_chunks(w)).for_each(|(row_out, row)| {
+    across.par_chunks_mut(w).zip(plane.par_chunks(w + 2 * pad)).for_each(|(row_out, row)| {
+        let row = &row[pad..pad + w];
         for x in 0..w {
             let left = if x > 0 { row[x - 1] } else { 0.0 };
             let right = if x + 1 < w { row[x + 1] } else { 0.0 };
@@ -416,8 +429,9 @@ impl Atrous {
                 let sd = luminance(Vec3::new(v.x.sqrt(), v.y.sqrt(), v.z.sqrt()) / *a);
                 sd * sd
             })
-            .collect();
-        let out = self.filter(&GuidePlanes::new(guide, self.passes), Signal::new(&illumination, var), |_| {});
+            .collect::<Vec<f32>>();
+        let planes = GuidePlanes::new(guide, self.passes);
+        let out = self.filter(&planes, Signal::new(&planes, &illumination, &var), |_| {});
         (0..n).map(|i| if guide.footprint[i] > 0.0 { out.get(i) * albedo[i] } else { colour[i] }).collect()
     }
 }
@@ -482,9 +496,8 @@ mod tests {
         let colour: Vec<Vec3> = (0..w * h).map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32())).collect();
         let var: Vec<f32> = (0..w * h).map(|_| 0.1 * rng.next_f32()).collect();
         let planes = GuidePlanes::new(&guide, 5);
-        let signal = Signal::new(&colour, var);
-        let taps = TapSignal::new(&planes, &signal);
-        let blurred = blurred_variance(&planes, &signal.var);
+        let signal = Signal::new(&planes, &colour, &var);
+        let blurred = blurred_variance(&planes, &signal);
         let atrous = Atrous::default();
         let bits = |s: &RowSums| {
             s.colour.iter().chain([&s.var, &s.weight]).flat_map(|v| v.iter().map(|x| x.to_bits())).collect::<Vec<_>>()
@@ -492,7 +505,7 @@ mod tests {
         let mut compared = 0;
         for step in [1, 2, 4, 16] {
             for y in 0..h as usize {
-                let args = (&planes, &taps, &blurred[..], y, step);
+                let args = (&planes, &signal, &blurred[..], y, step);
                 let plain = bits(&atrous.row_portable(args));
                 assert!(plain.iter().any(|&b| b != 0), "row {y}, step {step}: nothing summed");
                 #[cfg(target_arch = "x86_64")]

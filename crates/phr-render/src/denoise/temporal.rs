@@ -133,7 +133,7 @@ impl Temporal {
         let planes = GuidePlanes::new(guide, self.atrous.passes);
         let illumination: Vec<Vec3> = blended.par_iter().map(|b| b.illumination).collect();
         let mut first_pass = None;
-        let out = self.atrous.filter(&planes, Signal::new(&illumination, variance), |s| {
+        let out = self.atrous.filter(&planes, Signal::new(&planes, &illumination, &variance), |s| {
             first_pass = Some((0..w * h).into_par_iter().map(|i| s.get(i)).collect::<Vec<Vec3>>())
         });
         self.history = Some(History {
