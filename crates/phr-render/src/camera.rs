@@ -38,6 +38,10 @@ pub struct Camera {
     vertical: Vec3,
     inv_width: f32,
     inv_height: f32,
+    /// For [`Camera::project`] (once per pixel and frame in the temporal filter): half the
+    /// image size in pixels over `|horizontal|²` and `|vertical|²`, and half the image size.
+    project_scale: [f32; 2],
+    half_size: [f32; 2],
 }
 
 impl Camera {
@@ -47,13 +51,19 @@ impl Camera {
         let up = right.cross(forward);
         let half_height = (desc.vfov_degrees.to_radians() * 0.5).tan();
         let aspect = width as f32 / height as f32;
+        let (horizontal, vertical) = (right * (aspect * half_height), up * half_height);
         Self {
             origin: desc.position,
             forward,
-            horizontal: right * (aspect * half_height),
-            vertical: up * half_height,
+            horizontal,
+            vertical,
             inv_width: 1.0 / width as f32,
             inv_height: 1.0 / height as f32,
+            project_scale: [
+                0.5 * width as f32 / horizontal.length_squared(),
+                0.5 * height as f32 / vertical.length_squared(),
+            ],
+            half_size: [0.5 * width as f32, 0.5 * height as f32],
         }
     }
 
@@ -95,10 +105,13 @@ impl Camera {
         if depth.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return None;
         }
-        // d / depth = forward + sx·horizontal − sy·vertical, the three orthogonal.
-        let sx = d.dot(self.horizontal) / (depth * self.horizontal.length_squared());
-        let sy = -d.dot(self.vertical) / (depth * self.vertical.length_squared());
-        Some(((sx + 1.0) * 0.5 / self.inv_width, (sy + 1.0) * 0.5 / self.inv_height))
+        // d / depth = forward + sx·horizontal − sy·vertical, the three orthogonal, and the
+        // pixel is ((sx + 1)·width / 2, (sy + 1)·height / 2): one division.
+        let inv_depth = 1.0 / depth;
+        let [scale_x, scale_y] = self.project_scale;
+        let x = d.dot(self.horizontal) * inv_depth * scale_x + self.half_size[0];
+        let y = -d.dot(self.vertical) * inv_depth * scale_y + self.half_size[1];
+        Some((x, y))
     }
 }
 

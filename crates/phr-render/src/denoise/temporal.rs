@@ -224,10 +224,11 @@ impl History {
                 total += weight;
             }
         }
+        let inv_total = 1.0 / total;
         (total > 1e-3).then(|| Reprojected {
-            illumination: sum.illumination / total,
-            moments: [sum.moments[0] / total, sum.moments[1] / total],
-            length: sum.length / total,
+            illumination: sum.illumination * inv_total,
+            moments: [sum.moments[0] * inv_total, sum.moments[1] * inv_total],
+            length: sum.length * inv_total,
         })
     }
 }
