@@ -150,10 +150,11 @@ fn wavefront_and_single_ray_tracing_give_the_same_image() {
 }
 
 /// The batch queries the wavefront uses give each ray what the one-ray queries give it, on
-/// scenes the interleaved traversal covers only in part: the built-in scene cut into three
-/// parts, one of them moved by a transform (searched one ray at a time after the parts in
-/// place), a mesh placed as a copy under a floor (`scenes/instances/bunnies_1.json`), and a
-/// quad cut out by an alpha mask (`tests/references/alpha_mask.json`).
+/// scenes cut into parts: the built-in scene cut into three parts, one of them moved by a
+/// transform (searched as a batch in its object space after the parts in place), the same
+/// with all three moved (under a top-level tree, searched one ray at a time), a mesh placed
+/// as a copy under a floor (`scenes/instances/bunnies_1.json`), and a quad cut out by an alpha
+/// mask (`tests/references/alpha_mask.json`).
 /// Camera rays, rays in every direction from inside the scene, and finite shadow-like
 /// intervals; the renders of both tracings agree too.
 #[test]
@@ -161,11 +162,17 @@ fn batch_queries_equal_single_ray_queries_on_parts_and_copies() {
     use glam::Affine3A;
     use phr_bvh::Ray;
     use phr_render::render::Tracing;
-    let mut split = Geometry::new(&builtin::cornell_knot());
-    let n = split.prim_count() as u32;
-    let groups: Vec<Vec<u32>> = (0..3).map(|k| (0..n).filter(|p| p % 3 == k).collect()).collect();
-    split.split(groups, &Builder::default());
-    split.place(&[(2, Affine3A::from_rotation_y(0.2) * Affine3A::from_translation(Vec3::new(0.05, 0.0, -0.1)))]);
+    let split_in_three = || {
+        let mut g = Geometry::new(&builtin::cornell_knot());
+        let n = g.prim_count() as u32;
+        g.split((0..3).map(|k| (0..n).filter(|p| p % 3 == k).collect()).collect(), &Builder::default());
+        g
+    };
+    let moved = Affine3A::from_rotation_y(0.2) * Affine3A::from_translation(Vec3::new(0.05, 0.0, -0.1));
+    let mut split = split_in_three();
+    split.place(&[(2, moved)]);
+    let mut all_moved = split_in_three();
+    all_moved.place(&[(0, Affine3A::from_translation(Vec3::new(0.0, 0.02, 0.0))), (1, moved.inverse()), (2, moved)]);
     let bunnies = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/instances/bunnies_1.json");
     let bunnies = phr_render::scene::load_scene(std::path::Path::new(bunnies)).expect("bunnies_1.json");
     let mut copies = Geometry::new(&bunnies);
@@ -177,9 +184,18 @@ fn batch_queries_equal_single_ray_queries_on_parts_and_copies() {
     cutout.build(&Builder::default());
     // A point to aim rays at, and a spread around it: the middle of the built-in box, and
     // the one bunny (far to the left of its file's views).
-    let aims = [(cornell_view_target(), 150.0), (Vec3::new(-42.7, 1.0, 0.1), 1.0), (Vec3::new(0.0, 0.9, 0.15), 0.7)];
-    let cases =
-        [("split builtin", &split, &cornell), ("bunny copy", &copies, &bunnies), ("alpha mask", &cutout, &masked)];
+    let aims = [
+        (cornell_view_target(), 150.0),
+        (cornell_view_target(), 150.0),
+        (Vec3::new(-42.7, 1.0, 0.1), 1.0),
+        (Vec3::new(0.0, 0.9, 0.15), 0.7),
+    ];
+    let cases = [
+        ("split builtin", &split, &cornell),
+        ("split builtin, all moved", &all_moved, &cornell),
+        ("bunny copy", &copies, &bunnies),
+        ("alpha mask", &cutout, &masked),
+    ];
     for ((name, geometry, scene), (aim, spread)) in cases.into_iter().zip(aims) {
         let view = scene.view(None).expect("default view");
         let settings = RenderSettings { width: 24, height: 24, spp: 1, max_depth: MAX_DEPTH };

@@ -710,8 +710,9 @@ impl Geometry {
     /// Calls `search(k, ray)` for every part `k` the ray may hit, with the ray in the part's
     /// object space and its `tmax` the closest hit so far: parts in place first, then the
     /// moved ones. `search` shrinks `tmax` on a hit and returns true. `ANY`: stop at the first.
-    /// `IN_PLACE` false: the moved parts alone (the batch queries search the parts in place
-    /// themselves, [`Geometry::in_place_parts`]).
+    /// `IN_PLACE` false: the moved parts under the top-level tree alone (the batch queries
+    /// search the parts in place and the moved parts without a top-level tree themselves,
+    /// [`Geometry::batched_parts`]).
     #[inline(always)]
     fn search_parts<const ANY: bool, const IN_PLACE: bool>(
         &self,
@@ -732,7 +733,7 @@ impl Geometry {
             }
         }
         if placement.moved.len() <= DIRECT_MOVED {
-            for &(k, bounds) in &placement.moved {
+            for &(k, bounds) in placement.moved.iter().filter(|_| IN_PLACE) {
                 if bounds.intersect(ray) == f32::INFINITY {
                     continue;
                 }
@@ -773,11 +774,12 @@ impl Geometry {
     }
 
     /// [`Geometry::intersect`] of each of `rays`, into `hits`. The parts in place (the whole
-    /// scene, when it is one tree) trace the batch 2 or 4 rays at a time through the
+    /// scene, when it is one tree), then the moved parts searched without a top-level tree
+    /// (in their object space), trace the batch 2 or 4 rays at a time through the
     /// interleaved wide traversal, whose rays overlap each other's memory waits
-    /// ([`WideBvh::closest_hit_batch`]); moved parts and copies are then searched one ray at a
-    /// time. Each ray meets the parts in the same order and with the same interval as in
-    /// [`Geometry::intersect`], so the hits are the same.
+    /// ([`WideBvh::closest_hit_batch`]); the moved parts under a top-level tree and the copies
+    /// are then searched one ray at a time. Each ray meets the parts in the same order and
+    /// with the same interval as in [`Geometry::intersect`], so the hits are the same.
     pub fn intersect_batch(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         assert_eq!(rays.len(), hits.len(), "one hit per ray");
         if self.is_one_tree() {
@@ -787,10 +789,10 @@ impl Geometry {
         let mut work = rays.to_vec();
         let mut batch = Vec::with_capacity(rays.len());
         let mut found = Vec::with_capacity(rays.len());
-        for (k, bounds) in self.in_place_parts() {
+        for (k, bounds) in self.batched_parts() {
             let (part, which) = (&self.parts[k as usize], Self::reaching(&work, bounds));
             batch.clear();
-            batch.extend(which.iter().map(|&i| work[i]));
+            batch.extend(which.iter().map(|&i| part.instance.object_ray(&work[i])));
             found.clear();
             found.resize(batch.len(), None);
             part.closest_batch(self, k, &batch, &mut found);
@@ -810,8 +812,9 @@ impl Geometry {
         }
     }
 
-    /// [`Geometry::occluded`] of each of `rays`, into `occluded`: the parts in place as
-    /// batches, interleaved as in [`Geometry::intersect_batch`], then moved parts and copies
+    /// [`Geometry::occluded`] of each of `rays`, into `occluded`: the parts in place and the
+    /// moved parts without a top-level tree as batches, interleaved as in
+    /// [`Geometry::intersect_batch`], then the moved parts under a top-level tree and the copies
     /// one ray at a time for the rays not yet occluded.
     pub fn occluded_batch(&self, rays: &[Ray], occluded: &mut [bool]) {
         assert_eq!(rays.len(), occluded.len(), "one answer per ray");
@@ -821,13 +824,14 @@ impl Geometry {
         occluded.fill(false);
         let mut batch = Vec::with_capacity(rays.len());
         let mut answers = Vec::with_capacity(rays.len());
-        for (k, bounds) in self.in_place_parts() {
+        for (k, bounds) in self.batched_parts() {
+            let part = &self.parts[k as usize];
             let which: Vec<usize> = Self::reaching(rays, bounds).into_iter().filter(|&i| !occluded[i]).collect();
             batch.clear();
-            batch.extend(which.iter().map(|&i| rays[i]));
+            batch.extend(which.iter().map(|&i| part.instance.object_ray(&rays[i])));
             answers.clear();
             answers.resize(batch.len(), false);
-            self.parts[k as usize].occluded_batch(self, &batch, &mut answers);
+            part.occluded_batch(self, &batch, &mut answers);
             for (&i, &blocked) in which.iter().zip(&answers) {
                 occluded[i] |= blocked;
             }
@@ -847,12 +851,16 @@ impl Geometry {
         self.placement.is_none() && self.copies.is_empty()
     }
 
-    /// The parts searched with the world ray as it is, first, with their boxes (`None`: the
-    /// whole scene is one part, without a box test).
-    fn in_place_parts(&self) -> Vec<(u32, Option<Aabb>)> {
+    /// The parts the batch queries search as batches, in [`Geometry::search_parts`]'s order,
+    /// with their world boxes (`None`: the whole scene is one part, without a box test): the
+    /// parts in place, then the moved parts if there is no top-level tree over them.
+    fn batched_parts(&self) -> Vec<(u32, Option<Aabb>)> {
         match &self.placement {
             None => vec![(0, None)],
-            Some(placement) => placement.in_place.iter().map(|&(k, bounds)| (k, Some(bounds))).collect(),
+            Some(placement) => {
+                let direct = if placement.moved.len() <= DIRECT_MOVED { &placement.moved[..] } else { &[] };
+                placement.in_place.iter().chain(direct).map(|&(k, bounds)| (k, Some(bounds))).collect()
+            }
         }
     }
 
