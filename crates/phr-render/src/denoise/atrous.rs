@@ -95,6 +95,8 @@ pub(crate) struct GuidePlanes {
     position: [Vec<f32>; 3],
     /// 0: not a surface to filter ([`Guide::footprint`]); not padded.
     footprint: Vec<f32>,
+    /// The same, padded (with 0).
+    footprint_padded: Vec<f32>,
     /// The surface mask (1 on surfaces) under [`blur_3x3`]: the weights that normalise each
     /// pass's blurred variance, the same for every pass.
     surface_blurred: Vec<f32>,
@@ -115,6 +117,7 @@ impl GuidePlanes {
             normal: [plane(&guide.normal, 0), plane(&guide.normal, 1), plane(&guide.normal, 2)],
             position: [plane(&guide.position, 0), plane(&guide.position, 1), plane(&guide.position, 2)],
             footprint: guide.footprint.clone(),
+            footprint_padded: padded(height, width, pad, 0.0, |i| guide.footprint[i]),
             surface_blurred: blur_3x3(&surface, width, height, 0),
         }
     }
@@ -294,17 +297,8 @@ impl Atrous {
         assert!(2 * 2 * step + MAX_LANES <= 2 * pad, "the guide was made for fewer passes");
         assert!(taps.lum.len() == len && taps.var.len() == len && taps.colour.iter().all(|p| p.len() == len));
         assert!(guide.normal.iter().chain(&guide.position).all(|p| p.len() == len));
+        assert!(blurred.len() == len && guide.footprint_padded.len() == len);
         let lanes = w.div_ceil(V::N) * V::N;
-        // Per centre pixel: 1 / (σl σ(l)), and 1 / (σp footprint step) (0 off surfaces,
-        // whose result is not used, and past the row's end).
-        let mut luminance_scale = vec![0.0f32; lanes];
-        let mut plane_scale = vec![0.0f32; lanes];
-        for x in 0..w {
-            let i = y * w + x;
-            luminance_scale[x] = 1.0 / (self.sigma_luminance * blurred[i].sqrt() + 1e-6);
-            let f = guide.footprint[i];
-            plane_scale[x] = if f > 0.0 { 1.0 / (self.sigma_plane * f * step as f32) } else { 0.0 };
-        }
         // The taps whose row lies in the image: kernel weight, 1 / offset length in steps
         // (the plane distance is per step of offset), offset in the padded planes.
         let mut tap_list = Vec::with_capacity(25);
@@ -322,9 +316,10 @@ impl Atrous {
             var: vec![0.0; lanes],
             weight: vec![0.0; lanes],
         };
-        // SAFETY: a chunk reads `V::N ≤ MAX_LANES` values from padded index `c + offset`:
-        // `c = y·stride + pad + x0` with `x0 < w`, and the offset moves it to a row in the
-        // image (checked above) and at most `2·step` pixels across, which the padding holds
+        // SAFETY: a chunk reads `V::N ≤ MAX_LANES` values from padded index `c + offset` of
+        // planes of `len` values (asserted above): `c = y·stride + pad + x0` with `x0 < w`,
+        // and the offset (0 for the centre's own planes) moves it to a row in the image
+        // (checked above) and at most `2·step` pixels across, which the padding holds
         // (asserted above); the row arrays hold `lanes` values, whole chunks. The CPU has
         // `V`'s features (the caller's promise).
         unsafe {
@@ -338,7 +333,12 @@ impl Atrous {
                 let (pnx, pny, pnz) = (at(nx, c), at(ny, c), at(nz, c));
                 let (ppx, ppy, ppz) = (at(px, c), at(py, c), at(pz, c));
                 let plum = at(&taps.lum, c);
-                let (lscale, pscale) = (at(&luminance_scale, x0), at(&plane_scale, x0));
+                // 1 / (σl σ(l)), and 1 / (σp footprint step) (0 off surfaces, whose result is
+                // not used, and in the padding).
+                let one = V::splat(1.0);
+                let lscale = one.div(V::splat(self.sigma_luminance).mul(at(blurred, c).sqrt()).add(V::splat(1e-6)));
+                let f = at(&guide.footprint_padded, c);
+                let pscale = one.div(V::splat(self.sigma_plane).mul(f).mul(V::splat(step as f32))).keep(f.gt(zero));
                 let (mut sr, mut sg, mut sb, mut sv, mut sw) = (zero, zero, zero, zero, zero);
                 for &(kernel, inv_distance, offset) in &tap_list {
                     let q = c.wrapping_add_signed(offset);
@@ -379,10 +379,12 @@ impl Atrous {
 }
 
 /// The variance smoothed by a 3×3 Gaussian over surface pixels, as SVGF does before each pass:
-/// one pixel's variance estimate from few samples is itself noisy.
+/// one pixel's variance estimate from few samples is itself noisy. [`padded`] (with 0).
 fn blurred_variance(guide: &GuidePlanes, signal: &Signal) -> Vec<f32> {
-    let sum = blur_3x3(&signal.var, guide.width, guide.height, guide.pad);
-    sum.par_iter().zip(&guide.surface_blurred).map(|(s, t)| if *t > 0.0 { s / t } else { 0.0 }).collect()
+    let (w, h, pad) = (guide.width, guide.height, guide.pad);
+    let sum = blur_3x3(&signal.var, w, h, pad);
+    let surface = &guide.surface_blurred;
+    padded(h, w, pad, 0.0, |i| if surface[i] > 0.0 { sum[i] / surface[i] } else { 0.0 })
 }
 
 /// `plane` (`w × h`, rows of `w` values with `pad` more on each side) under the separable 3×3

@@ -23,6 +23,8 @@ pub(crate) trait Lanes: Copy {
     unsafe fn add(self, o: Self) -> Self;
     unsafe fn sub(self, o: Self) -> Self;
     unsafe fn mul(self, o: Self) -> Self;
+    unsafe fn div(self, o: Self) -> Self;
+    unsafe fn sqrt(self) -> Self;
     /// `self > o ? self : o` per lane.
     unsafe fn max(self, o: Self) -> Self;
     /// `self < o ? self : o` per lane.
@@ -95,6 +97,14 @@ impl Lanes for Scalar {
     #[inline(always)]
     unsafe fn mul(self, o: Self) -> Self {
         Self(self.0 * o.0)
+    }
+    #[inline(always)]
+    unsafe fn div(self, o: Self) -> Self {
+        Self(self.0 / o.0)
+    }
+    #[inline(always)]
+    unsafe fn sqrt(self) -> Self {
+        Self(self.0.sqrt())
     }
     #[inline(always)]
     unsafe fn max(self, o: Self) -> Self {
@@ -188,6 +198,14 @@ mod x86 {
             Self(unsafe { _mm256_mul_ps(self.0, o.0) })
         }
         #[inline(always)]
+        unsafe fn div(self, o: Self) -> Self {
+            Self(unsafe { _mm256_div_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        unsafe fn sqrt(self) -> Self {
+            Self(unsafe { _mm256_sqrt_ps(self.0) })
+        }
+        #[inline(always)]
         unsafe fn max(self, o: Self) -> Self {
             Self(unsafe { _mm256_max_ps(self.0, o.0) })
         }
@@ -251,6 +269,14 @@ mod x86 {
         #[inline(always)]
         unsafe fn mul(self, o: Self) -> Self {
             Self(unsafe { _mm512_mul_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        unsafe fn div(self, o: Self) -> Self {
+            Self(unsafe { _mm512_div_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        unsafe fn sqrt(self) -> Self {
+            Self(unsafe { _mm512_sqrt_ps(self.0) })
         }
         #[inline(always)]
         unsafe fn max(self, o: Self) -> Self {
