@@ -12,9 +12,11 @@
 //!   σ(l_p) the standard deviation of the pixel's estimate (carried through the passes as a
 //!   filtered variance shrinks, and smoothed over 3×3 before each pass, as in SVGF).
 //!
-//! The buffers are planes of `f32` (structure of arrays) and a pass runs tap by tap over a
-//! whole row, so the compiler vectorises the weights 8 pixels at a time; `exp` is a
-//! polynomial ([`exp_neg`]) for the same reason.
+//! The buffers are planes of `f32` (structure of arrays), each row padded on both sides with
+//! pixels off every surface. A pass takes a row 16 pixels at a time (AVX-512; 8 with AVX2, 1
+//! elsewhere, [`Lanes`]) and adds all 25 taps to those pixels' sums in registers; the
+//! padding lets a chunk's taps read past the row's ends without a test, and `exp` is a
+//! polynomial ([`exp_neg`]) that runs on the lanes (the library's is a call per lane).
 
 use super::lanes::{exp_neg, Lanes, Scalar};
 #[cfg(target_arch = "x86_64")]
