@@ -155,15 +155,18 @@ impl Signal {
         }
     }
 
-    /// Pixel `i` (row-major, unpadded).
-    pub fn get(&self, i: usize) -> Vec3 {
-        let j = self.padded_index(i);
-        Vec3::new(self.colour[0][j], self.colour[1][j], self.colour[2][j])
-    }
-
-    fn padded_index(&self, i: usize) -> usize {
-        let (y, x) = (i / self.width, i % self.width);
-        y * (self.width + 2 * self.pad) + self.pad + x
+    /// The pixels, row-major, without the padding.
+    pub fn pixels(&self) -> Vec<Vec3> {
+        let (w, stride) = (self.width, self.width + 2 * self.pad);
+        let mut out = vec![Vec3::ZERO; self.colour[0].len() / stride * w];
+        out.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
+            let j = y * stride + self.pad;
+            let [r, g, b] = &self.colour;
+            for (x, p) in row.iter_mut().enumerate() {
+                *p = Vec3::new(r[j + x], g[j + x], b[j + x]);
+            }
+        });
+        out
     }
 }
 
@@ -435,8 +438,8 @@ impl Atrous {
             })
             .collect::<Vec<f32>>();
         let planes = GuidePlanes::new(guide, self.passes);
-        let out = self.filter(&planes, Signal::new(&planes, &illumination, &var), |_| {});
-        (0..n).map(|i| if guide.footprint[i] > 0.0 { out.get(i) * albedo[i] } else { colour[i] }).collect()
+        let out = self.filter(&planes, Signal::new(&planes, &illumination, &var), |_| {}).pixels();
+        (0..n).map(|i| if guide.footprint[i] > 0.0 { out[i] * albedo[i] } else { colour[i] }).collect()
     }
 }
 

@@ -133,9 +133,10 @@ impl Temporal {
         let planes = GuidePlanes::new(guide, self.atrous.passes);
         let illumination: Vec<Vec3> = blended.par_iter().map(|b| b.illumination).collect();
         let mut first_pass = None;
-        let out = self.atrous.filter(&planes, Signal::new(&planes, &illumination, &variance), |s| {
-            first_pass = Some((0..w * h).into_par_iter().map(|i| s.get(i)).collect::<Vec<Vec3>>())
-        });
+        let out = self
+            .atrous
+            .filter(&planes, Signal::new(&planes, &illumination, &variance), |s| first_pass = Some(s.pixels()))
+            .pixels();
         self.history = Some(History {
             camera: camera.clone(),
             width: w,
@@ -148,7 +149,7 @@ impl Temporal {
         });
         (0..w * h)
             .into_par_iter()
-            .map(|i| if guide.footprint[i] > 0.0 { out.get(i) * albedo[i] } else { colour[i] })
+            .map(|i| if guide.footprint[i] > 0.0 { out[i] * albedo[i] } else { colour[i] })
             .collect()
     }
 
