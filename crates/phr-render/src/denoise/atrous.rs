@@ -63,12 +63,14 @@ const MIN_NORMAL_COS: f32 = 0.85;
 
 pub(crate) use crate::film::luminance;
 
-/// Pixels of padding on each side of a row of the planes the taps read: the farthest tap of
-/// `passes` passes (2 steps of `2^(passes − 1)`) plus a chunk of the widest lanes, so that a
-/// chunk's taps never leave their row's memory. The padding is off every surface (an
-/// infinite luminance), so the taps there count for nothing.
-fn padding(passes: u32) -> usize {
-    2 * (1usize << passes.saturating_sub(1)) + MAX_LANES
+/// Pixels of padding on each side of a row of `width` pixels in the planes the taps read: the
+/// farthest tap of `passes` passes (2 steps of `2^(passes − 1)`, but taps a whole row or more
+/// away are skipped) plus a chunk of the widest lanes, so that a chunk's taps never leave
+/// their row's memory. The padding is off every surface (an infinite luminance), so the taps
+/// there count for nothing.
+fn padding(passes: u32, width: usize) -> usize {
+    let widest = 1usize.checked_shl(passes.saturating_sub(1)).unwrap_or(usize::MAX);
+    widest.saturating_mul(2).min(width) + MAX_LANES
 }
 
 /// The widest [`Lanes`] type's lanes.
@@ -108,7 +110,7 @@ impl GuidePlanes {
     /// The planes for up to `passes` passes.
     pub fn new(guide: &Guide, passes: u32) -> Self {
         let (width, height) = (guide.width as usize, guide.height as usize);
-        let pad = padding(passes);
+        let pad = padding(passes, width);
         let plane = |v: &[Vec3], c: usize| padded(height, width, pad, 0.0, |i| v[i][c]);
         let surface: Vec<f32> = guide.footprint.par_iter().map(|f| if *f > 0.0 { 1.0 } else { 0.0 }).collect();
         Self {
@@ -143,13 +145,15 @@ impl Signal {
     /// `guide`.
     pub fn new(guide: &GuidePlanes, illumination: &[Vec3], var: &[f32]) -> Self {
         let (w, h, pad) = (guide.width, guide.height, guide.pad);
-        let on = |i: usize| guide.footprint[i] > 0.0;
-        let plane = |c: usize| padded(h, w, pad, 0.0, |i| illumination[i][c]);
+        // Taps are surface pixels with a finite estimate; the others hold 0 (a NaN or an
+        // infinity times a tap's weight of 0 would still spread) and an infinite luminance.
+        let tap = |i: usize| guide.footprint[i] > 0.0 && illumination[i].is_finite();
+        let plane = |c: usize| padded(h, w, pad, 0.0, |i| if tap(i) { illumination[i][c] } else { 0.0 });
         Self {
             colour: [plane(0), plane(1), plane(2)],
             // (`max` also makes NaN 0.)
-            var: padded(h, w, pad, 0.0, |i| if on(i) { var[i].max(0.0) } else { 0.0 }),
-            lum: padded(h, w, pad, f32::INFINITY, |i| if on(i) { luminance(illumination[i]) } else { f32::INFINITY }),
+            var: padded(h, w, pad, 0.0, |i| if tap(i) { var[i].max(0.0) } else { 0.0 }),
+            lum: padded(h, w, pad, f32::INFINITY, |i| if tap(i) { luminance(illumination[i]) } else { f32::INFINITY }),
             width: w,
             pad,
         }
@@ -192,7 +196,10 @@ impl Atrous {
         mut after_first: impl FnMut(&Signal),
     ) -> Signal {
         for pass in 0..self.passes {
-            signal = self.pass(guide, &signal, 1 << pass);
+            // Steps this wide are wider than any image: the passes left would keep only their
+            // centre taps.
+            let Some(step) = 1usize.checked_shl(pass).filter(|s| *s <= isize::MAX as usize / 4) else { break };
+            signal = self.pass(guide, &signal, step);
             if pass == 0 {
                 after_first(&signal);
             }
@@ -238,16 +245,16 @@ impl Atrous {
                 self.row_portable(args)
             };
             for x in 0..w {
-                let (i, j) = (y * w + x, y * stride + pad + x);
+                let i = y * w + x;
                 let k = pad + x;
-                if guide.footprint[i] > 0.0 {
-                    let total = sums.weight[x];
-                    (r[k], g[k], b[k]) =
-                        (sums.colour[0][x] / total, sums.colour[1][x] / total, sums.colour[2][x] / total);
-                    var[k] = sums.var[x] / (total * total);
-                    lum[k] = luminance(Vec3::new(r[k], g[k], b[k]));
-                } else {
-                    (r[k], g[k], b[k]) = (signal.colour[0][j], signal.colour[1][j], signal.colour[2][j]);
+                let total = sums.weight[x];
+                let c = Vec3::new(sums.colour[0][x] / total, sums.colour[1][x] / total, sums.colour[2][x] / total);
+                // Pixels off surfaces, and those whose taps all dropped (a non-finite
+                // sample), keep 0 and an infinite luminance, as in `Signal::new`.
+                if guide.footprint[i] > 0.0 && total > 0.0 && c.is_finite() {
+                    (r[k], g[k], b[k]) = c.into();
+                    var[k] = (sums.var[x] / (total * total)).max(0.0);
+                    lum[k] = luminance(c);
                 }
             }
         });
@@ -299,7 +306,7 @@ impl Atrous {
         // Every plane the taps read holds `h` padded rows, and the farthest tap of a chunk
         // stays within its row's padding (the loads below rely on both).
         let len = stride * h;
-        assert!(2 * 2 * step + MAX_LANES <= 2 * pad, "the guide was made for fewer passes");
+        assert!(step.saturating_mul(2).min(w) + MAX_LANES <= pad, "the guide was made for fewer passes");
         assert!(taps.lum.len() == len && taps.var.len() == len && taps.colour.iter().all(|p| p.len() == len));
         assert!(guide.normal.iter().chain(&guide.position).all(|p| p.len() == len));
         assert!(blurred.len() == len && guide.footprint_padded.len() == len);
@@ -312,6 +319,10 @@ impl Atrous {
                 continue;
             }
             for (dx, kx) in (-2..=2isize).zip(KERNEL) {
+                if dx != 0 && dx.unsigned_abs() * step >= w {
+                    // A row or more across: no centre pixel's tap lies in the image.
+                    continue;
+                }
                 let inv_distance = 1.0 / ((dx * dx + dy * dy) as f32).sqrt().max(1.0);
                 tap_list.push((kx * ky, inv_distance, (dy * stride as isize + dx) * step as isize));
             }
@@ -324,8 +335,10 @@ impl Atrous {
         // SAFETY: a chunk reads `V::N ≤ MAX_LANES` values from padded index `c + offset` of
         // planes of `len` values (asserted above): `c = y·stride + pad + x0` with `x0 < w`,
         // and the offset (0 for the centre's own planes) moves it to a row in the image
-        // (checked above) and at most `2·step` pixels across, which the padding holds
-        // (asserted above); the row arrays hold `lanes` values, whole chunks. The CPU has
+        // (checked above) and at most `min(2·step, w − 1)` pixels across (taps a row or more
+        // across are skipped), so the chunk's last value lies at most `w − 1 + that + V::N − 1`
+        // past the row's start, within `pad` more than the row (asserted above); the row
+        // arrays hold `lanes` values, whole chunks. The CPU has
         // `V`'s features (the caller's promise).
         unsafe {
             let at = |plane: &[f32], i: usize| V::load(plane.as_ptr().add(i));
@@ -612,6 +625,32 @@ mod tests {
         for (i, c) in out.iter().enumerate().filter(|(i, _)| !on_tilted(*i)) {
             assert_eq!(*c, Vec3::ZERO, "pixel {i}");
         }
+    }
+
+    /// More passes than any image needs (their steps grow past its size, and past what
+    /// `usize` holds): bounded padding, the constant image kept.
+    #[test]
+    fn many_passes_on_a_small_image() {
+        let (w, h) = (5, 3);
+        let (n, guide) = ((w * h) as usize, wall_of(w, h));
+        let atrous = Atrous { passes: 80, ..Atrous::default() };
+        let out = atrous.denoise(&vec![Vec3::splat(0.25); n], &vec![Vec3::splat(0.01); n], &guide);
+        assert!(out.iter().all(|c| (*c - Vec3::splat(0.25)).abs().max_element() < 1e-5), "{out:?}");
+        assert!(GuidePlanes::new(&guide, 80).pad <= w as usize + MAX_LANES);
+    }
+
+    /// A pixel whose sample is not finite is left out: it comes out black, its neighbours
+    /// as if it were not there (before, NaN times a weight of 0 spread it over the image).
+    #[test]
+    fn a_non_finite_sample_does_not_spread() {
+        let guide = wall();
+        let (mut colour, var) = noisy(|_| 0.4, 0.05, 4);
+        let bad = (H / 2 * W + W / 2) as usize;
+        colour[bad] = Vec3::splat(f32::NAN);
+        let out = Atrous::default().denoise(&colour, &var, &guide);
+        let broken: Vec<usize> = (0..out.len()).filter(|&i| !out[i].is_finite()).collect();
+        assert!(broken.is_empty(), "non-finite pixels ({bad} was the NaN sample): {broken:?}");
+        assert_eq!(out[bad], Vec3::ZERO);
     }
 
     /// Images narrower and shorter than the widest step (16 pixels × 2) are filtered too.

@@ -116,6 +116,11 @@ impl Temporal {
                 let illumination = colour[i] / albedo[i];
                 let l = luminance(illumination);
                 let old = history.as_ref().and_then(|old| old.reproject(guide, i));
+                if !illumination.is_finite() {
+                    // A non-finite sample is left out: the history goes on as it was (or, with
+                    // none, the pixel has no estimate, which the spatial filter leaves out).
+                    return old.unwrap_or(Reprojected { illumination: Vec3::NAN, ..Reprojected::default() });
+                }
                 let length = (old.map_or(0.0, |o| o.length) + 1.0).min(MAX_HISTORY);
                 let alpha = (1.0 / length).max(self.min_alpha);
                 let old = old.unwrap_or(Reprojected { illumination, moments: [l, l * l], length: 0.0 });
@@ -204,8 +209,9 @@ impl History {
     fn reproject(&self, guide: &Guide, i: usize) -> Option<Reprojected> {
         let (n, p, f) = (guide.normal[i], guide.position[i], guide.footprint[i]);
         let (u, v) = self.camera.project(p)?;
-        // Pixel centres lie at half-integer coordinates.
-        let (u, v) = (u - 0.5, v - 0.5);
+        // Pixel centres lie at half-integer coordinates; points far off the image are clamped
+        // to just outside it (they find nothing either way, and the integer casts stay small).
+        let (u, v) = ((u - 0.5).clamp(-2.0, self.width as f32 + 1.0), (v - 0.5).clamp(-2.0, self.height as f32 + 1.0));
         let (x0, y0) = (u.floor(), v.floor());
         let (fx, fy) = (u - x0, v - y0);
         let (mut sum, mut total) = (Reprojected::default(), 0.0f32);
