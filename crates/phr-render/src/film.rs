@@ -81,10 +81,13 @@ impl Film {
     }
 }
 
-/// The luminance of a linear Rec. 709 colour (the weights of ITU-R BT.709).
+/// The weights of ITU-R BT.709 for a linear Rec. 709 colour's luminance.
+pub const LUMINANCE_WEIGHTS: [f32; 3] = [0.2126, 0.7152, 0.0722];
+
+/// The luminance of a linear Rec. 709 colour.
 #[inline]
 pub fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+    c.dot(Vec3::from_array(LUMINANCE_WEIGHTS))
 }
 
 #[cfg(test)]

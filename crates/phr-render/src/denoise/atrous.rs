@@ -178,11 +178,23 @@ impl Signal {
 /// the step.
 type RowArgs<'a> = (&'a GuidePlanes, &'a Signal, &'a [f32], usize, usize);
 
-/// Row `y`'s sums over its taps.
-struct RowSums {
-    colour: [Vec<f32>; 3],
-    var: Vec<f32>,
-    weight: Vec<f32>,
+/// Where [`Atrous::row`] writes row `y` of the pass's output: its padded rows (`stride`
+/// values) of the three colour planes, the variance and the luminance.
+type OutRow<'a> = [&'a mut [f32]; 5];
+
+impl Signal {
+    /// A signal laid out for `guide` with every pixel off the surfaces (0, and an infinite
+    /// luminance): what a pass writes into, row by row.
+    fn empty(guide: &GuidePlanes) -> Self {
+        let plane = |fill| vec![fill; guide.stride * guide.height];
+        Self {
+            colour: [plane(0.0), plane(0.0), plane(0.0)],
+            var: plane(0.0),
+            lum: plane(f32::INFINITY),
+            width: guide.width,
+            pad: guide.pad,
+        }
+    }
 }
 
 impl Atrous {
@@ -195,11 +207,16 @@ impl Atrous {
         mut signal: Signal,
         mut after_first: impl FnMut(&Signal),
     ) -> Signal {
+        // Each pass writes into the planes the pass before it read: one signal's memory more
+        // for the whole filter, not one per pass.
+        let mut spare: Option<Signal> = None;
         for pass in 0..self.passes {
             // Steps this wide are wider than any image: the passes left would keep only their
             // centre taps.
             let Some(step) = 1usize.checked_shl(pass).filter(|s| *s <= isize::MAX as usize / 4) else { break };
-            signal = self.pass(guide, &signal, step);
+            let mut out = spare.take().unwrap_or_else(|| Signal::empty(guide));
+            self.pass(guide, &signal, step, &mut out);
+            spare = Some(std::mem::replace(&mut signal, out));
             if pass == 0 {
                 after_first(&signal);
             }
@@ -207,24 +224,16 @@ impl Atrous {
         signal
     }
 
-    /// One pass with taps `step` pixels apart.
-    fn pass(&self, guide: &GuidePlanes, signal: &Signal, step: usize) -> Signal {
-        let (w, h, pad) = (guide.width, guide.height, guide.pad);
-        let stride = w + 2 * pad;
+    /// One pass with taps `step` pixels apart, from `signal` into `out` (laid out for `guide`
+    /// as `signal` is; every pixel is written, the padding is left as it is).
+    fn pass(&self, guide: &GuidePlanes, signal: &Signal, step: usize, out: &mut Signal) {
+        let stride = guide.stride;
         let blurred = blurred_variance(guide, signal);
         let wide = SimdLevel::detect() == SimdLevel::Avx2;
         #[cfg(target_arch = "x86_64")]
         let widest = wide && std::arch::is_x86_feature_detected!("avx512f");
         #[cfg(not(target_arch = "x86_64"))]
         let widest = false;
-        let plane = |fill| vec![fill; stride * h];
-        let mut out = Signal {
-            colour: [plane(0.0), plane(0.0), plane(0.0)],
-            var: plane(0.0),
-            lum: plane(f32::INFINITY),
-            width: w,
-            pad,
-        };
         let [out_r, out_g, out_b] = &mut out.colour;
         let rows = (
             out_r.par_chunks_mut(stride),
@@ -235,73 +244,62 @@ impl Atrous {
         );
         rows.into_par_iter().enumerate().for_each(|(y, (r, g, b, var, lum))| {
             let args = (guide, signal, &blurred[..], y, step);
-            let sums = if widest {
+            let row = [r, g, b, var, lum];
+            if widest {
                 // SAFETY: the CPU has AVX-512 F (checked above).
-                unsafe { self.row_avx512(args) }
+                unsafe { self.row_avx512(args, row) }
             } else if wide {
                 // SAFETY: the CPU has AVX2 (checked above).
-                unsafe { self.row_avx2(args) }
+                unsafe { self.row_avx2(args, row) }
             } else {
-                self.row_portable(args)
-            };
-            for x in 0..w {
-                let i = y * w + x;
-                let k = pad + x;
-                let total = sums.weight[x];
-                let c = Vec3::new(sums.colour[0][x] / total, sums.colour[1][x] / total, sums.colour[2][x] / total);
-                // Pixels off surfaces, and those whose taps all dropped (a non-finite
-                // sample), keep 0 and an infinite luminance, as in `Signal::new`.
-                if guide.footprint[i] > 0.0 && total > 0.0 && c.is_finite() {
-                    (r[k], g[k], b[k]) = c.into();
-                    var[k] = (sums.var[x] / (total * total)).max(0.0);
-                    lum[k] = luminance(c);
-                }
+                self.row_portable(args, row)
             }
         });
-        out
     }
 
     /// [`Atrous::row`] one pixel at a time.
-    fn row_portable(&self, args: RowArgs) -> RowSums {
+    fn row_portable(&self, args: RowArgs, out: OutRow) {
         // SAFETY: `Scalar` needs no CPU feature.
-        unsafe { self.row::<Scalar>(args) }
+        unsafe { self.row::<Scalar>(args, out) }
     }
 
     /// [`Atrous::row`] 8 pixels at a time.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn row_avx2(&self, args: RowArgs) -> RowSums {
+    fn row_avx2(&self, args: RowArgs, out: OutRow) {
         // SAFETY: compiled for AVX2, which `Avx2` needs.
-        unsafe { self.row::<Avx2>(args) }
+        unsafe { self.row::<Avx2>(args, out) }
     }
 
     /// [`Atrous::row`] 16 pixels at a time.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    fn row_avx512(&self, args: RowArgs) -> RowSums {
+    fn row_avx512(&self, args: RowArgs, out: OutRow) {
         // SAFETY: compiled for AVX-512 F, which `Avx512` needs.
-        unsafe { self.row::<Avx512>(args) }
+        unsafe { self.row::<Avx512>(args, out) }
     }
 
     /// Never called: there is no AVX-512 off x86-64.
     #[cfg(not(target_arch = "x86_64"))]
-    unsafe fn row_avx512(&self, args: RowArgs) -> RowSums {
-        self.row_portable(args)
+    unsafe fn row_avx512(&self, args: RowArgs, out: OutRow) {
+        self.row_portable(args, out)
     }
 
     /// Never called: [`SimdLevel::detect`] finds no AVX2 off x86-64.
     #[cfg(not(target_arch = "x86_64"))]
-    unsafe fn row_avx2(&self, args: RowArgs) -> RowSums {
-        self.row_portable(args)
+    unsafe fn row_avx2(&self, args: RowArgs, out: OutRow) {
+        self.row_portable(args, out)
     }
 
-    /// The sums of row `y`'s taps, `V::N` centre pixels at a time: their data and their sums
-    /// stay in registers while the 25 taps are added in turn.
+    /// Row `y` of the pass, `V::N` centre pixels at a time: their data and their sums stay in
+    /// registers while the 25 taps are added in turn, and the normalised result goes
+    /// straight to the output rows (colour, variance and luminance; 0, 0 and an infinite
+    /// luminance off surfaces and where every tap dropped out).
     ///
     /// # Safety
     /// The CPU must have what `V`'s operations use (see [`Lanes`]).
     #[inline(always)]
-    unsafe fn row<V: Lanes>(&self, (guide, taps, blurred, y, step): RowArgs) -> RowSums {
+    unsafe fn row<V: Lanes>(&self, (guide, taps, blurred, y, step): RowArgs, out: OutRow) {
         let (w, h, stride, pad) = (guide.width, guide.height, guide.stride, guide.pad);
         // Every plane the taps read holds `h` padded rows, and the farthest tap of a chunk
         // stays within its row's padding (the loads below rely on both).
@@ -310,10 +308,11 @@ impl Atrous {
         assert!(taps.lum.len() == len && taps.var.len() == len && taps.colour.iter().all(|p| p.len() == len));
         assert!(guide.normal.iter().chain(&guide.position).all(|p| p.len() == len));
         assert!(blurred.len() == len && guide.footprint_padded.len() == len);
-        let lanes = w.div_ceil(V::N) * V::N;
+        assert!(out.iter().all(|row| row.len() == stride));
         // The taps whose row lies in the image: kernel weight, 1 / offset length in steps
         // (the plane distance is per step of offset), offset in the padded planes.
-        let mut tap_list = Vec::with_capacity(25);
+        let mut tap_list = [(0.0f32, 0.0f32, 0isize); 25];
+        let mut tap_count = 0;
         for (dy, ky) in (-2..=2isize).zip(KERNEL) {
             if !(0..h as isize).contains(&(y as isize + dy * step as isize)) {
                 continue;
@@ -324,28 +323,28 @@ impl Atrous {
                     continue;
                 }
                 let inv_distance = 1.0 / ((dx * dx + dy * dy) as f32).sqrt().max(1.0);
-                tap_list.push((kx * ky, inv_distance, (dy * stride as isize + dx) * step as isize));
+                tap_list[tap_count] = (kx * ky, inv_distance, (dy * stride as isize + dx) * step as isize);
+                tap_count += 1;
             }
         }
-        let mut sums = RowSums {
-            colour: [vec![0.0; lanes], vec![0.0; lanes], vec![0.0; lanes]],
-            var: vec![0.0; lanes],
-            weight: vec![0.0; lanes],
-        };
+        let [out_r, out_g, out_b, out_var, out_lum] = out;
         // SAFETY: a chunk reads `V::N ≤ MAX_LANES` values from padded index `c + offset` of
         // planes of `len` values (asserted above): `c = y·stride + pad + x0` with `x0 < w`,
         // and the offset (0 for the centre's own planes) moves it to a row in the image
         // (checked above) and at most `min(2·step, w − 1)` pixels across (taps a row or more
         // across are skipped), so the chunk's last value lies at most `w − 1 + that + V::N − 1`
-        // past the row's start, within `pad` more than the row (asserted above); the row
-        // arrays hold `lanes` values, whole chunks. The CPU has
-        // `V`'s features (the caller's promise).
+        // past the row's start, within `pad` more than the row (asserted above). It writes
+        // `V::N` values from `pad + x0` of output rows of `stride = w + 2·pad` values
+        // (asserted), which ends within the right padding; lanes there lie off every surface
+        // and write the padding's own values. The CPU has `V`'s features (the caller's
+        // promise).
         unsafe {
             let at = |plane: &[f32], i: usize| V::load(plane.as_ptr().add(i));
             let [nx, ny, nz] = &guide.normal;
             let [px, py, pz] = &guide.position;
             let [r, g, b] = &taps.colour;
             let zero = V::splat(0.0);
+            let infinity = V::splat(f32::INFINITY);
             for x0 in (0..w).step_by(V::N) {
                 let c = y * stride + pad + x0;
                 let (pnx, pny, pnz) = (at(nx, c), at(ny, c), at(nz, c));
@@ -358,7 +357,7 @@ impl Atrous {
                 let f = at(&guide.footprint_padded, c);
                 let pscale = one.div(V::splat(self.sigma_plane).mul(f).mul(V::splat(step as f32))).keep(f.gt(zero));
                 let (mut sr, mut sg, mut sb, mut sv, mut sw) = (zero, zero, zero, zero, zero);
-                for &(kernel, inv_distance, offset) in &tap_list {
+                for &(kernel, inv_distance, offset) in &tap_list[..tap_count] {
                     let q = c.wrapping_add_signed(offset);
                     let cos = pnx.mul(at(nx, q)).add(pny.mul(at(ny, q))).add(pnz.mul(at(nz, q)));
                     // From at least MIN_NORMAL_COS, so that the powers stay normal floats.
@@ -381,19 +380,34 @@ impl Atrous {
                     sv = sv.add(at(&taps.var, q).mul(weight).mul(weight));
                     sw = sw.add(weight);
                 }
-                let [out_r, out_g, out_b] = &mut sums.colour;
-                sr.store(out_r.as_mut_ptr().add(x0));
-                sg.store(out_g.as_mut_ptr().add(x0));
-                sb.store(out_b.as_mut_ptr().add(x0));
-                sv.store(sums.var.as_mut_ptr().add(x0));
-                sw.store(sums.weight.as_mut_ptr().add(x0));
+                // The weighted means, and the variance of the weighted sum; kept on surfaces
+                // whose taps did not all drop and whose result is finite (a non-finite
+                // sample's pixel keeps the values of the pixels off surfaces, as in
+                // `Signal::new`).
+                let (cr, cg, cb) = (sr.div(sw), sg.div(sw), sb.div(sw));
+                let var = sv.div(sw.mul(sw)).max(zero);
+                let finite = V::and(V::and(cr.abs().lt(infinity), cg.abs().lt(infinity)), cb.abs().lt(infinity));
+                let kept = V::and(V::and(f.gt(zero), sw.gt(zero)), finite);
+                let o = pad + x0;
+                cr.keep(kept).store(out_r.as_mut_ptr().add(o));
+                cg.keep(kept).store(out_g.as_mut_ptr().add(o));
+                cb.keep(kept).store(out_b.as_mut_ptr().add(o));
+                var.keep(kept).store(out_var.as_mut_ptr().add(o));
+                luminance_lanes(cr, cg, cb).or_else(kept, infinity).store(out_lum.as_mut_ptr().add(o));
             }
         }
-        for plane in sums.colour.iter_mut().chain([&mut sums.var, &mut sums.weight]) {
-            plane.truncate(w);
-        }
-        sums
     }
+}
+
+/// [`luminance`] over lanes: the same products summed in the same order, so the same bits.
+///
+/// # Safety
+/// As [`Lanes`].
+#[inline(always)]
+unsafe fn luminance_lanes<V: Lanes>(r: V, g: V, b: V) -> V {
+    let [kr, kg, kb] = crate::film::LUMINANCE_WEIGHTS;
+    // SAFETY: the caller's.
+    unsafe { r.mul(V::splat(kr)).add(g.mul(V::splat(kg))).add(b.mul(V::splat(kb))) }
 }
 
 /// The variance smoothed by a 3×3 Gaussian over surface pixels, as SVGF does before each pass:
@@ -501,10 +515,11 @@ mod tests {
     }
 
     /// The compiled variants of the tap loop (plain, AVX2, AVX-512, as far as this CPU has
-    /// them) give the same sums, bit for bit, on a rough scene: random normals, depths,
-    /// colours and variances, and pixels off surfaces.
+    /// them) give the same output rows, bit for bit, on a rough scene: random normals, depths,
+    /// colours and variances, and pixels off surfaces; and the rows' luminance is
+    /// [`luminance`] of their colour.
     #[test]
-    fn every_compiled_tap_loop_gives_the_same_sums() {
+    fn every_compiled_tap_loop_gives_the_same_rows() {
         let mut rng = Pcg32::new(7, 3);
         let (w, h) = (37u32, 21u32);
         let mut guide = wall_of(w, h);
@@ -519,25 +534,39 @@ mod tests {
         let signal = Signal::new(&planes, &colour, &var);
         let blurred = blurred_variance(&planes, &signal);
         let atrous = Atrous::default();
-        let bits = |s: &RowSums| {
-            s.colour.iter().chain([&s.var, &s.weight]).flat_map(|v| v.iter().map(|x| x.to_bits())).collect::<Vec<_>>()
+        // The output rows a variant writes, from the values of pixels off surfaces.
+        let rows = |variant: &dyn Fn(OutRow)| {
+            let mut rows: [Vec<f32>; 5] =
+                std::array::from_fn(|k| vec![if k == 4 { f32::INFINITY } else { 0.0 }; planes.stride]);
+            let [r, g, b, v, l] = &mut rows;
+            variant([r, g, b, v, l]);
+            rows
         };
+        let bits = |rows: &[Vec<f32>; 5]| rows.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
         let mut compared = 0;
         for step in [1, 2, 4, 16] {
             for y in 0..h as usize {
                 let args = (&planes, &signal, &blurred[..], y, step);
-                let plain = bits(&atrous.row_portable(args));
-                assert!(plain.iter().any(|&b| b != 0), "row {y}, step {step}: nothing summed");
+                let plain = rows(&|out| atrous.row_portable(args, out));
+                let pad = planes.pad;
+                let on_surface = (0..w as usize).filter(|&x| plain[4][pad + x].is_finite()).collect::<Vec<_>>();
+                assert!(on_surface.len() > w as usize / 2, "row {y}, step {step}: too few pixels filtered");
+                for x in on_surface {
+                    let c = Vec3::new(plain[0][pad + x], plain[1][pad + x], plain[2][pad + x]);
+                    assert_eq!(plain[4][pad + x].to_bits(), luminance(c).to_bits(), "row {y}, step {step}, x {x}");
+                }
                 #[cfg(target_arch = "x86_64")]
                 {
                     if std::arch::is_x86_feature_detected!("avx2") {
                         // SAFETY: the CPU has AVX2 (checked).
-                        assert_eq!(bits(&unsafe { atrous.row_avx2(args) }), plain, "AVX2, row {y}, step {step}");
+                        let avx2 = rows(&|out| unsafe { atrous.row_avx2(args, out) });
+                        assert_eq!(bits(&avx2), bits(&plain), "AVX2, row {y}, step {step}");
                         compared += 1;
                     }
                     if std::arch::is_x86_feature_detected!("avx512f") {
                         // SAFETY: the CPU has AVX-512 F (checked).
-                        assert_eq!(bits(&unsafe { atrous.row_avx512(args) }), plain, "AVX-512, row {y}, step {step}");
+                        let avx512 = rows(&|out| unsafe { atrous.row_avx512(args, out) });
+                        assert_eq!(bits(&avx512), bits(&plain), "AVX-512, row {y}, step {step}");
                         compared += 1;
                     }
                 }

@@ -37,6 +37,8 @@ pub(crate) trait Lanes: Copy {
     unsafe fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
     /// The lanes of `self` where `m` holds, 0 elsewhere.
     unsafe fn keep(self, m: Self::Mask) -> Self;
+    /// The lanes of `self` where `m` holds, those of `other` elsewhere.
+    unsafe fn or_else(self, m: Self::Mask, other: Self) -> Self;
     /// `2^k · self` for the integers `k` held in the low mantissa bits of `rounded`, which is
     /// `y + ROUND` ([`exp_neg`]).
     unsafe fn scale_by_exponent(self, rounded: Self) -> Self;
@@ -147,6 +149,14 @@ impl Lanes for Scalar {
         }
     }
     #[inline(always)]
+    unsafe fn or_else(self, m: bool, other: Self) -> Self {
+        if m {
+            self
+        } else {
+            other
+        }
+    }
+    #[inline(always)]
     unsafe fn scale_by_exponent(self, rounded: Self) -> Self {
         let k = rounded.0.to_bits().wrapping_sub(ROUND.to_bits());
         Self(f32::from_bits(k.wrapping_add(127) << 23) * self.0)
@@ -234,6 +244,10 @@ mod x86 {
             Self(unsafe { _mm256_and_ps(self.0, m) })
         }
         #[inline(always)]
+        unsafe fn or_else(self, m: __m256, other: Self) -> Self {
+            Self(unsafe { _mm256_blendv_ps(other.0, self.0, m) })
+        }
+        #[inline(always)]
         unsafe fn scale_by_exponent(self, rounded: Self) -> Self {
             unsafe {
                 let k = _mm256_sub_epi32(_mm256_castps_si256(rounded.0), _mm256_set1_epi32(ROUND.to_bits() as i32));
@@ -307,6 +321,10 @@ mod x86 {
         #[inline(always)]
         unsafe fn keep(self, m: __mmask16) -> Self {
             Self(unsafe { _mm512_maskz_mov_ps(m, self.0) })
+        }
+        #[inline(always)]
+        unsafe fn or_else(self, m: __mmask16, other: Self) -> Self {
+            Self(unsafe { _mm512_mask_blend_ps(m, other.0, self.0) })
         }
         #[inline(always)]
         unsafe fn scale_by_exponent(self, rounded: Self) -> Self {
