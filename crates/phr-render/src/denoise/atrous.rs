@@ -76,16 +76,31 @@ fn padding(passes: u32, width: usize) -> usize {
 /// The widest [`Lanes`] type's lanes.
 const MAX_LANES: usize = 16;
 
-/// `plane` (`width` values a row) with `pad` values of `fill` on each side of every row.
-fn padded(rows: usize, width: usize, pad: usize, fill: f32, value: impl Fn(usize) -> f32 + Sync) -> Vec<f32> {
+/// `K` planes of `width` values a row with `pad` values of `fill` on each side of every row,
+/// pixel `i`'s values from `value(i)`: one pass over the rows, in parallel.
+fn padded_planes<const K: usize>(
+    rows: usize,
+    width: usize,
+    pad: usize,
+    fill: [f32; K],
+    value: impl Fn(usize) -> [f32; K] + Sync,
+) -> [Vec<f32>; K] {
     let stride = width + 2 * pad;
-    let mut out = vec![fill; stride * rows];
-    out.par_chunks_mut(stride).enumerate().for_each(|(y, row)| {
-        for (x, v) in row[pad..pad + width].iter_mut().enumerate() {
-            *v = value(y * width + x);
+    let mut planes = fill.map(|f| vec![f; stride * rows]);
+    if stride == 0 {
+        return planes;
+    }
+    let mut chunks: Vec<_> = planes.iter_mut().map(|p| p.chunks_mut(stride)).collect();
+    let row_sets: Vec<[&mut [f32]; K]> =
+        (0..rows).map(|_| std::array::from_fn(|k| chunks[k].next().expect("rows × stride values"))).collect();
+    row_sets.into_par_iter().enumerate().for_each(|(y, mut row)| {
+        for x in 0..width {
+            for (plane, v) in row.iter_mut().zip(value(y * width + x)) {
+                plane[pad + x] = v;
+            }
         }
     });
-    out
+    planes
 }
 
 /// Per-pixel planes of a frame's first surfaces: what every pass reads unchanged. The
@@ -101,7 +116,7 @@ pub(crate) struct GuidePlanes {
     footprint: Vec<f32>,
     /// The same, padded (with 0).
     footprint_padded: Vec<f32>,
-    /// The surface mask (1 on surfaces) under [`blur_3x3`]: the weights that normalise each
+    /// The surface mask (1 on surfaces) under [`blur_3x3_into`]: the weights that normalise each
     /// pass's blurred variance, the same for every pass.
     surface_blurred: Vec<f32>,
 }
@@ -111,18 +126,25 @@ impl GuidePlanes {
     pub fn new(guide: &Guide, passes: u32) -> Self {
         let (width, height) = (guide.width as usize, guide.height as usize);
         let pad = padding(passes, width);
-        let plane = |v: &[Vec3], c: usize| padded(height, width, pad, 0.0, |i| v[i][c]);
+        let [nx, ny, nz, px, py, pz, footprint_padded] = padded_planes(height, width, pad, [0.0; 7], |i| {
+            let (n, p) = (guide.normal[i], guide.position[i]);
+            [n.x, n.y, n.z, p.x, p.y, p.z, guide.footprint[i]]
+        });
         let surface: Vec<f32> = guide.footprint.par_iter().map(|f| if *f > 0.0 { 1.0 } else { 0.0 }).collect();
         Self {
             width,
             height,
             pad,
             stride: width + 2 * pad,
-            normal: [plane(&guide.normal, 0), plane(&guide.normal, 1), plane(&guide.normal, 2)],
-            position: [plane(&guide.position, 0), plane(&guide.position, 1), plane(&guide.position, 2)],
+            normal: [nx, ny, nz],
+            position: [px, py, pz],
             footprint: guide.footprint.clone(),
-            footprint_padded: padded(height, width, pad, 0.0, |i| guide.footprint[i]),
-            surface_blurred: blur_3x3(&surface, width, height, 0),
+            footprint_padded,
+            surface_blurred: {
+                let mut blurred = vec![0.0; width * height];
+                blur_3x3_into(&surface, width, height, 0, &mut blurred, |_, sum| sum);
+                blurred
+            },
         }
     }
 }
@@ -144,25 +166,35 @@ impl Signal {
     /// The signal of pixels `illumination` with luminance variances `var`, laid out for
     /// `guide`.
     pub fn new(guide: &GuidePlanes, illumination: &[Vec3], var: &[f32]) -> Self {
+        Self::from_fn(guide, |i| (illumination[i], var[i]))
+    }
+
+    /// The signal whose pixel `i` has the illumination and luminance variance `pixel(i)`,
+    /// laid out for `guide`.
+    pub fn from_fn(guide: &GuidePlanes, pixel: impl Fn(usize) -> (Vec3, f32) + Sync) -> Self {
         let (w, h, pad) = (guide.width, guide.height, guide.pad);
         // Taps are surface pixels with a finite estimate; the others hold 0 (a NaN or an
         // infinity times a tap's weight of 0 would still spread) and an infinite luminance.
-        let tap = |i: usize| guide.footprint[i] > 0.0 && illumination[i].is_finite();
-        let plane = |c: usize| padded(h, w, pad, 0.0, |i| if tap(i) { illumination[i][c] } else { 0.0 });
-        Self {
-            colour: [plane(0), plane(1), plane(2)],
+        let off = [0.0, 0.0, 0.0, 0.0, f32::INFINITY];
+        let [r, g, b, var, lum] = padded_planes(h, w, pad, off, |i| {
+            if guide.footprint[i] <= 0.0 {
+                return off;
+            }
+            let (c, v) = pixel(i);
             // (`max` also makes NaN 0.)
-            var: padded(h, w, pad, 0.0, |i| if tap(i) { var[i].max(0.0) } else { 0.0 }),
-            lum: padded(h, w, pad, f32::INFINITY, |i| if tap(i) { luminance(illumination[i]) } else { f32::INFINITY }),
-            width: w,
-            pad,
-        }
+            if c.is_finite() {
+                [c.x, c.y, c.z, v.max(0.0), luminance(c)]
+            } else {
+                off
+            }
+        });
+        Self { colour: [r, g, b], var, lum, width: w, pad }
     }
 
-    /// The pixels, row-major, without the padding.
-    pub fn pixels(&self) -> Vec<Vec3> {
+    /// The pixels, row-major, without the padding, into `out`.
+    pub fn pixels_into(&self, out: &mut [Vec3]) {
         let (w, stride) = (self.width, self.width + 2 * self.pad);
-        let mut out = vec![Vec3::ZERO; self.colour[0].len() / stride * w];
+        assert_eq!(out.len(), self.colour[0].len() / stride * w, "one value per pixel");
         out.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
             let j = y * stride + self.pad;
             let [r, g, b] = &self.colour;
@@ -170,6 +202,12 @@ impl Signal {
                 *p = Vec3::new(r[j + x], g[j + x], b[j + x]);
             }
         });
+    }
+
+    /// The pixels, row-major, without the padding.
+    pub fn pixels(&self) -> Vec<Vec3> {
+        let mut out = vec![Vec3::ZERO; self.colour[0].len() / (self.width + 2 * self.pad) * self.width];
+        self.pixels_into(&mut out);
         out
     }
 }
@@ -210,12 +248,14 @@ impl Atrous {
         // Each pass writes into the planes the pass before it read: one signal's memory more
         // for the whole filter, not one per pass.
         let mut spare: Option<Signal> = None;
+        let mut blurred = vec![0.0; guide.stride * guide.height];
         for pass in 0..self.passes {
             // Steps this wide are wider than any image: the passes left would keep only their
             // centre taps.
             let Some(step) = 1usize.checked_shl(pass).filter(|s| *s <= isize::MAX as usize / 4) else { break };
             let mut out = spare.take().unwrap_or_else(|| Signal::empty(guide));
-            self.pass(guide, &signal, step, &mut out);
+            blurred_variance(guide, &signal, &mut blurred);
+            self.pass(guide, &signal, &blurred, step, &mut out);
             spare = Some(std::mem::replace(&mut signal, out));
             if pass == 0 {
                 after_first(&signal);
@@ -224,11 +264,11 @@ impl Atrous {
         signal
     }
 
-    /// One pass with taps `step` pixels apart, from `signal` into `out` (laid out for `guide`
-    /// as `signal` is; every pixel is written, the padding is left as it is).
-    fn pass(&self, guide: &GuidePlanes, signal: &Signal, step: usize, out: &mut Signal) {
+    /// One pass with taps `step` pixels apart, from `signal` (whose variance is `blurred`
+    /// after [`blurred_variance`]) into `out` (laid out for `guide` as `signal` is; every
+    /// pixel is written, the padding is left as it is).
+    fn pass(&self, guide: &GuidePlanes, signal: &Signal, blurred: &[f32], step: usize, out: &mut Signal) {
         let stride = guide.stride;
-        let blurred = blurred_variance(guide, signal);
         let wide = SimdLevel::detect() == SimdLevel::Avx2;
         #[cfg(target_arch = "x86_64")]
         let widest = wide && std::arch::is_x86_feature_detected!("avx512f");
@@ -243,7 +283,7 @@ impl Atrous {
             out.lum.par_chunks_mut(stride),
         );
         rows.into_par_iter().enumerate().for_each(|(y, (r, g, b, var, lum))| {
-            let args = (guide, signal, &blurred[..], y, step);
+            let args = (guide, signal, blurred, y, step);
             let row = [r, g, b, var, lum];
             if widest {
                 // SAFETY: the CPU has AVX-512 F (checked above).
@@ -411,36 +451,47 @@ unsafe fn luminance_lanes<V: Lanes>(r: V, g: V, b: V) -> V {
 }
 
 /// The variance smoothed by a 3×3 Gaussian over surface pixels, as SVGF does before each pass:
-/// one pixel's variance estimate from few samples is itself noisy. [`padded`] (with 0).
-fn blurred_variance(guide: &GuidePlanes, signal: &Signal) -> Vec<f32> {
-    let (w, h, pad) = (guide.width, guide.height, guide.pad);
-    let sum = blur_3x3(&signal.var, w, h, pad);
+/// one pixel's variance estimate from few samples is itself noisy. Into `out`, [`padded`]
+/// (its padding is left as it is: 0).
+fn blurred_variance(guide: &GuidePlanes, signal: &Signal, out: &mut [f32]) {
     let surface = &guide.surface_blurred;
-    padded(h, w, pad, 0.0, |i| if surface[i] > 0.0 { sum[i] / surface[i] } else { 0.0 })
+    blur_3x3_into(&signal.var, guide.width, guide.height, guide.pad, out, |i, sum| {
+        if surface[i] > 0.0 {
+            sum / surface[i]
+        } else {
+            0.0
+        }
+    });
 }
 
 /// `plane` (`w × h`, rows of `w` values with `pad` more on each side) under the separable 3×3
-/// kernel (¼, ½, ¼)², zero outside; rows in parallel. The result is not padded.
-fn blur_3x3(plane: &[f32], w: usize, h: usize, pad: usize) -> Vec<f32> {
+/// kernel (¼, ½, ¼)², zero outside the image, each pixel's sum through `finish(pixel, sum)`,
+/// into `out` laid out as `plane` (the padding left as it is); one pass over the rows, in
+/// parallel (each row computes the horizontal sums of its three rows itself).
+fn blur_3x3_into(
+    plane: &[f32],
+    w: usize,
+    h: usize,
+    pad: usize,
+    out: &mut [f32],
+    finish: impl Fn(usize, f32) -> f32 + Sync,
+) {
     const GAUSS: [f32; 3] = [0.25, 0.5, 0.25];
-    let mut across = vec![0.0; w * h];
-    across.par_chunks_mut(w).zip(plane.par_chunks(w + 2 * pad)).for_each(|(row_out, row)| {
-        let row = &row[pad..pad + w];
+    let stride = w + 2 * pad;
+    assert!(plane.len() == stride * h && out.len() == stride * h);
+    let across = |y: usize, x: usize| {
+        let row = &plane[y * stride + pad..y * stride + pad + w];
+        let left = if x > 0 { row[x - 1] } else { 0.0 };
+        let right = if x + 1 < w { row[x + 1] } else { 0.0 };
+        GAUSS[0] * left + GAUSS[1] * row[x] + GAUSS[2] * right
+    };
+    out.par_chunks_mut(stride.max(1)).enumerate().for_each(|(y, row_out)| {
         for x in 0..w {
-            let left = if x > 0 { row[x - 1] } else { 0.0 };
-            let right = if x + 1 < w { row[x + 1] } else { 0.0 };
-            row_out[x] = GAUSS[0] * left + GAUSS[1] * row[x] + GAUSS[2] * right;
+            let up = if y > 0 { across(y - 1, x) } else { 0.0 };
+            let down = if y + 1 < h { across(y + 1, x) } else { 0.0 };
+            row_out[pad + x] = finish(y * w + x, GAUSS[0] * up + GAUSS[1] * across(y, x) + GAUSS[2] * down);
         }
     });
-    let mut out = vec![0.0; w * h];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row_out)| {
-        for (x, o) in row_out.iter_mut().enumerate() {
-            let up = if y > 0 { across[(y - 1) * w + x] } else { 0.0 };
-            let down = if y + 1 < h { across[(y + 1) * w + x] } else { 0.0 };
-            *o = GAUSS[0] * up + GAUSS[1] * across[y * w + x] + GAUSS[2] * down;
-        }
-    });
-    out
 }
 
 /// Smallest albedo channel divided by (dark surfaces would blow their noise up).
@@ -532,7 +583,8 @@ mod tests {
         let var: Vec<f32> = (0..w * h).map(|_| 0.1 * rng.next_f32()).collect();
         let planes = GuidePlanes::new(&guide, 5);
         let signal = Signal::new(&planes, &colour, &var);
-        let blurred = blurred_variance(&planes, &signal);
+        let mut blurred = vec![0.0; planes.stride * planes.height];
+        blurred_variance(&planes, &signal, &mut blurred);
         let atrous = Atrous::default();
         // The output rows a variant writes, from the values of pixels off surfaces.
         let rows = |variant: &dyn Fn(OutRow)| {

@@ -154,48 +154,58 @@ impl Guide {
         let geometry = renderer.tracer.geometry;
         let tracer = &renderer.tracer;
         let camera = &renderer.camera;
-        let pixels: Vec<(Vec3, Vec3, Vec3, f32)> = (0..w * h)
-            .into_par_iter()
-            .map(|i| {
-                let (x, y) = ((i % w) as f32, (i / w) as f32);
-                let mut rng = Pcg32::for_pixel(renderer.seed ^ 0x6a09_e667, 0, i);
-                // The centre's hit guides the filter; it and jittered ones average the albedo.
-                let first_hit = |ray: &phr_bvh::Ray| {
-                    let hit = geometry.intersect(ray);
-                    hit.map_or(FirstHit::SKY, |hit| tracer.first_hit(&geometry.surface_point(ray, &hit), &hit))
-                };
-                let mut centre = first_hit(&camera.ray(x + 0.5, y + 0.5));
-                let mut albedo = centre.albedo;
-                for _ in 1..samples.max(1) {
-                    let first = first_hit(&camera.ray(x + rng.next_f32(), y + rng.next_f32()));
-                    albedo += first.albedo;
-                    centre.light |= first.light;
-                }
-                centre.albedo = albedo / samples.max(1) as f32;
-                guide_pixel(camera, i % w, i / w, &centre)
-            })
-            .collect();
-        Self::from_pixels(w, h, pixels)
+        Self::from_fn(w, h, |i| {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            let mut rng = Pcg32::for_pixel(renderer.seed ^ 0x6a09_e667, 0, i);
+            // The centre's hit guides the filter; it and jittered ones average the albedo.
+            let first_hit = |ray: &phr_bvh::Ray| {
+                let hit = geometry.intersect(ray);
+                hit.map_or(FirstHit::SKY, |hit| tracer.first_hit(&geometry.surface_point(ray, &hit), &hit))
+            };
+            let mut centre = first_hit(&camera.ray(x + 0.5, y + 0.5));
+            let mut albedo = centre.albedo;
+            for _ in 1..samples.max(1) {
+                let first = first_hit(&camera.ray(x + rng.next_f32(), y + rng.next_f32()));
+                albedo += first.albedo;
+                centre.light |= first.light;
+            }
+            centre.albedo = albedo / samples.max(1) as f32;
+            guide_pixel(camera, i % w, i / w, &centre)
+        })
     }
 
     /// The guide of one sample per pixel: each pixel's own camera ray's first hit (as
     /// [`crate::render::Renderer::render_frame_guided`] returns them, row-major).
     pub fn from_first_hits(camera: &Camera, width: u32, height: u32, hits: &[FirstHit]) -> Guide {
         assert_eq!(hits.len(), (width * height) as usize, "one first hit per pixel");
-        let pixels =
-            hits.par_iter().enumerate().map(|(i, hit)| guide_pixel(camera, i as u32 % width, i as u32 / width, hit));
-        Self::from_pixels(width, height, pixels.collect())
+        Self::from_fn(width, height, |i| guide_pixel(camera, i % width, i / width, &hits[i as usize]))
     }
 
-    fn from_pixels(width: u32, height: u32, pixels: Vec<(Vec3, Vec3, Vec3, f32)>) -> Guide {
-        Guide {
+    /// The guide whose pixel `i` has the albedo, normal, position and footprint `pixel(i)`;
+    /// rows in parallel.
+    fn from_fn(width: u32, height: u32, pixel: impl Fn(u32) -> (Vec3, Vec3, Vec3, f32) + Sync) -> Guide {
+        let n = (width * height) as usize;
+        let mut guide = Guide {
             width,
             height,
-            albedo: pixels.par_iter().map(|p| p.0).collect(),
-            normal: pixels.par_iter().map(|p| p.1).collect(),
-            position: pixels.par_iter().map(|p| p.2).collect(),
-            footprint: pixels.par_iter().map(|p| p.3).collect(),
-        }
+            albedo: vec![Vec3::ZERO; n],
+            normal: vec![Vec3::ZERO; n],
+            position: vec![Vec3::ZERO; n],
+            footprint: vec![0.0; n],
+        };
+        let w = (width as usize).max(1);
+        let rows = (
+            guide.albedo.par_chunks_mut(w),
+            guide.normal.par_chunks_mut(w),
+            guide.position.par_chunks_mut(w),
+            guide.footprint.par_chunks_mut(w),
+        );
+        rows.into_par_iter().enumerate().for_each(|(y, (albedo, normal, position, footprint))| {
+            for x in 0..albedo.len() {
+                (albedo[x], normal[x], position[x], footprint[x]) = pixel((y * w + x) as u32);
+            }
+        });
+        guide
     }
 }
 

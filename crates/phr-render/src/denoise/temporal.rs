@@ -55,6 +55,8 @@ pub struct Temporal {
     /// uses 0.2; lower is smoother and lags more behind moving light.
     pub min_alpha: f32,
     history: Option<History>,
+    /// The history before that, whose memory the next frame's history reuses.
+    spare: Option<History>,
 }
 
 impl Default for Temporal {
@@ -62,7 +64,7 @@ impl Default for Temporal {
     /// fifth changed no error measured (`tests/pipeline.rs`, the moving Cornell box: RMSE
     /// 0.00732 with four, 0.00730 with five) and costs a fifth of the filter's time.
     fn default() -> Self {
-        Self { atrous: Atrous { passes: 4, ..Atrous::default() }, min_alpha: 0.1, history: None }
+        Self { atrous: Atrous { passes: 4, ..Atrous::default() }, min_alpha: 0.1, history: None, spare: None }
     }
 }
 
@@ -105,101 +107,107 @@ impl Temporal {
     pub fn denoise(&mut self, colour: &[Vec3], guide: &Guide, camera: &Camera) -> Vec<Vec3> {
         let (w, h) = (guide.width as usize, guide.height as usize);
         assert_eq!(colour.len(), w * h, "image and guide sizes differ");
-        let albedo: Vec<Vec3> = guide.albedo.par_iter().map(|a| a.max(Vec3::splat(MIN_ALBEDO))).collect();
+        let albedo = |i: usize| guide.albedo[i].max(Vec3::splat(MIN_ALBEDO));
         let history = self.history.take().filter(|old| old.width == w && old.height == h);
-        let blended: Vec<Reprojected> = (0..w * h)
-            .into_par_iter()
-            .map(|i| {
-                if guide.footprint[i] <= 0.0 {
-                    return Reprojected::default();
-                }
-                let illumination = colour[i] / albedo[i];
-                let l = luminance(illumination);
-                let old = history.as_ref().and_then(|old| old.reproject(guide, i));
-                if !illumination.is_finite() {
-                    // A non-finite sample is left out: the history goes on as it was (or, with
-                    // none, the pixel has no estimate, which the spatial filter leaves out).
-                    return old.unwrap_or(Reprojected { illumination: Vec3::NAN, ..Reprojected::default() });
-                }
-                let length = (old.map_or(0.0, |o| o.length) + 1.0).min(MAX_HISTORY);
-                let alpha = (1.0 / length).max(self.min_alpha);
-                let old = old.unwrap_or(Reprojected { illumination, moments: [l, l * l], length: 0.0 });
-                Reprojected {
-                    illumination: old.illumination.lerp(illumination, alpha),
-                    moments: [
-                        old.moments[0] + alpha * (l - old.moments[0]),
-                        old.moments[1] + alpha * (l * l - old.moments[1]),
-                    ],
-                    length,
-                }
-            })
-            .collect();
-        let variance = self.variance(guide, &blended);
-        let planes = GuidePlanes::new(guide, self.atrous.passes);
-        let illumination: Vec<Vec3> = blended.par_iter().map(|b| b.illumination).collect();
-        let mut first_pass = None;
-        let out = self
-            .atrous
-            .filter(&planes, Signal::new(&planes, &illumination, &variance), |s| first_pass = Some(s.pixels()))
-            .pixels();
-        self.history = Some(History {
+        let mut next = self.spare.take().filter(|old| old.width == w && old.height == h).unwrap_or_else(|| History {
             camera: camera.clone(),
             width: w,
             height: h,
-            normal: guide.normal.clone(),
-            position: guide.position.clone(),
-            illumination: first_pass.unwrap_or(illumination),
-            moments: blended.par_iter().map(|b| b.moments).collect(),
-            length: blended.par_iter().map(|b| b.length).collect(),
+            normal: vec![Vec3::ZERO; w * h],
+            position: vec![Vec3::ZERO; w * h],
+            illumination: vec![Vec3::ZERO; w * h],
+            moments: vec![[0.0; 2]; w * h],
+            length: vec![0.0; w * h],
         });
+        // The blend, row by row: this frame's illumination into the reprojected history.
+        // `next.illumination` holds the blended illumination until the first pass replaces it.
+        let rows = (
+            next.illumination.par_chunks_mut(w.max(1)),
+            next.moments.par_chunks_mut(w.max(1)),
+            next.length.par_chunks_mut(w.max(1)),
+        );
+        rows.into_par_iter().enumerate().for_each(|(y, (illumination_row, moments_row, length_row))| {
+            for (x, ((blended_illumination, moments), length)) in
+                illumination_row.iter_mut().zip(moments_row).zip(length_row).enumerate()
+            {
+                let i = y * w + x;
+                let blended = self.blend(colour[i] / albedo(i), guide, history.as_ref(), i);
+                (*blended_illumination, *moments, *length) = (blended.illumination, blended.moments, blended.length);
+            }
+        });
+        let planes = GuidePlanes::new(guide, self.atrous.passes);
+        let signal = Signal::from_fn(&planes, |i| (next.illumination[i], self.variance(guide, &next, i)));
+        let out = self.atrous.filter(&planes, signal, |first| first.pixels_into(&mut next.illumination)).pixels();
+        next.camera.clone_from(camera);
+        next.normal.copy_from_slice(&guide.normal);
+        next.position.copy_from_slice(&guide.position);
+        self.spare = history;
+        self.history = Some(next);
         (0..w * h)
             .into_par_iter()
-            .map(|i| if guide.footprint[i] > 0.0 { out[i] * albedo[i] } else { colour[i] })
+            .map(|i| if guide.footprint[i] > 0.0 { out[i] * albedo(i) } else { colour[i] })
             .collect()
     }
 
-    /// The variance of each pixel's blended estimate: the sample variance from its moments (or
-    /// its neighbours' on a short history) times the blend's share of one sample.
-    fn variance(&self, guide: &Guide, blended: &[Reprojected]) -> Vec<f32> {
+    /// Pixel `i`'s illumination (this frame's sample over its albedo) blended into its
+    /// reprojected history.
+    fn blend(&self, illumination: Vec3, guide: &Guide, history: Option<&History>, i: usize) -> Reprojected {
+        if guide.footprint[i] <= 0.0 {
+            return Reprojected::default();
+        }
+        let l = luminance(illumination);
+        let old = history.and_then(|old| old.reproject(guide, i));
+        if !illumination.is_finite() {
+            // A non-finite sample is left out: the history goes on as it was (or, with
+            // none, the pixel has no estimate, which the spatial filter leaves out).
+            return old.unwrap_or(Reprojected { illumination: Vec3::NAN, ..Reprojected::default() });
+        }
+        let length = (old.map_or(0.0, |o| o.length) + 1.0).min(MAX_HISTORY);
+        let alpha = (1.0 / length).max(self.min_alpha);
+        let old = old.unwrap_or(Reprojected { illumination, moments: [l, l * l], length: 0.0 });
+        Reprojected {
+            illumination: old.illumination.lerp(illumination, alpha),
+            moments: [old.moments[0] + alpha * (l - old.moments[0]), old.moments[1] + alpha * (l * l - old.moments[1])],
+            length,
+        }
+    }
+
+    /// The variance of pixel `i`'s blended estimate (its moments and history length in
+    /// `blended`): the sample variance from its moments (or its neighbours' on a short
+    /// history) times the blend's share of one sample.
+    fn variance(&self, guide: &Guide, blended: &History, i: usize) -> f32 {
         let (w, h) = (guide.width as i64, guide.height as i64);
-        (0..blended.len())
-            .into_par_iter()
-            .map(|i| {
-                let b = &blended[i];
-                if b.length <= 0.0 {
-                    return 0.0;
-                }
-                let [m1, m2] = if b.length >= SPATIAL_VARIANCE_UNTIL {
-                    b.moments
-                } else {
-                    // A 7×7 neighbourhood of the same surface (weights as the filter's, without
-                    // the luminance).
-                    let (x, y) = (i as i64 % w, i as i64 / w);
-                    let (n, p, f) = (guide.normal[i], guide.position[i], guide.footprint[i]);
-                    let (mut sum, mut total) = ([0.0f32; 2], 0.0f32);
-                    for qy in (y - 3).max(0)..(y + 4).min(h) {
-                        for qx in (x - 3).max(0)..(x + 4).min(w) {
-                            let j = (qy * w + qx) as usize;
-                            let offset = (((qx - x).pow(2) + (qy - y).pow(2)) as f32).sqrt().max(1.0);
-                            if blended[j].length <= 0.0
-                                || !same_surface(n, p, f, guide.normal[j], guide.position[j], offset)
-                            {
-                                continue;
-                            }
-                            sum[0] += blended[j].moments[0];
-                            sum[1] += blended[j].moments[1];
-                            total += 1.0;
-                        }
+        let length = blended.length[i];
+        if length <= 0.0 {
+            return 0.0;
+        }
+        let [m1, m2] = if length >= SPATIAL_VARIANCE_UNTIL {
+            blended.moments[i]
+        } else {
+            // A 7×7 neighbourhood of the same surface (weights as the filter's, without
+            // the luminance).
+            let (x, y) = (i as i64 % w, i as i64 / w);
+            let (n, p, f) = (guide.normal[i], guide.position[i], guide.footprint[i]);
+            let (mut sum, mut total) = ([0.0f32; 2], 0.0f32);
+            for qy in (y - 3).max(0)..(y + 4).min(h) {
+                for qx in (x - 3).max(0)..(x + 4).min(w) {
+                    let j = (qy * w + qx) as usize;
+                    let offset = (((qx - x).pow(2) + (qy - y).pow(2)) as f32).sqrt().max(1.0);
+                    if blended.length[j] <= 0.0 || !same_surface(n, p, f, guide.normal[j], guide.position[j], offset) {
+                        continue;
                     }
-                    [sum[0] / total, sum[1] / total]
-                };
-                let sample_variance = (m2 - m1 * m1).max(0.0);
-                // A mean of `length` samples, or at steady state the exponential blend's
-                // α / (2 − α).
-                let alpha = self.min_alpha;
-                sample_variance * (1.0 / b.length).max(alpha / (2.0 - alpha))
-            })
-            .collect()
+                    sum[0] += blended.moments[j][0];
+                    sum[1] += blended.moments[j][1];
+                    total += 1.0;
+                }
+            }
+            [sum[0] / total, sum[1] / total]
+        };
+        let sample_variance = (m2 - m1 * m1).max(0.0);
+        // A mean of `length` samples, or at steady state the exponential blend's
+        // α / (2 − α).
+        let alpha = self.min_alpha;
+        sample_variance * (1.0 / length).max(alpha / (2.0 - alpha))
     }
 }
 
