@@ -76,6 +76,10 @@ fn padding(passes: u32, width: usize) -> usize {
 /// The widest [`Lanes`] type's lanes.
 const MAX_LANES: usize = 16;
 
+/// A pixel off every surface in a [`Signal`]'s planes (colour, variance, luminance): no
+/// colour, and an infinite luminance, so that a tap there counts for nothing.
+const OFF_SURFACE: [f32; 5] = [0.0, 0.0, 0.0, 0.0, f32::INFINITY];
+
 /// `K` planes of `width` values a row with `pad` values of `fill` on each side of every row,
 /// pixel `i`'s values from `value(i)`: one pass over the rows, in parallel.
 fn padded_planes<const K: usize>(
@@ -104,7 +108,7 @@ fn padded_planes<const K: usize>(
 }
 
 /// Per-pixel planes of a frame's first surfaces: what every pass reads unchanged. The
-/// normals and positions are [`padded`] rows of `stride` values.
+/// normals and positions are [`padded_planes`] rows of `stride` values.
 pub(crate) struct GuidePlanes {
     pub width: usize,
     pub height: usize,
@@ -151,9 +155,9 @@ impl GuidePlanes {
 
 /// What a pass filters: the illumination (three planes), the variance of its luminance (0
 /// off surfaces), and the luminance itself (infinite off surfaces: a tap there gets an
-/// infinite exponent, so the tap loop needs no test of its own for it). [`padded`] like the
-/// guide's planes (the padding off every surface), so that a pass's output is the next
-/// pass's input as it is.
+/// infinite exponent, so the tap loop needs no test of its own for it). Laid out as the
+/// guide's planes ([`padded_planes`], the padding off every surface: [`OFF_SURFACE`]), so
+/// that a pass's output is the next pass's input as it is.
 pub(crate) struct Signal {
     colour: [Vec<f32>; 3],
     var: Vec<f32>,
@@ -175,18 +179,15 @@ impl Signal {
         let (w, h, pad) = (guide.width, guide.height, guide.pad);
         // Taps are surface pixels with a finite estimate; the others hold 0 (a NaN or an
         // infinity times a tap's weight of 0 would still spread) and an infinite luminance.
-        let off = [0.0, 0.0, 0.0, 0.0, f32::INFINITY];
-        let [r, g, b, var, lum] = padded_planes(h, w, pad, off, |i| {
-            if guide.footprint[i] <= 0.0 {
-                return off;
+        let [r, g, b, var, lum] = padded_planes(h, w, pad, OFF_SURFACE, |i| {
+            if guide.footprint[i] > 0.0 {
+                let (c, v) = pixel(i);
+                // (`max` also makes NaN 0.)
+                if c.is_finite() {
+                    return [c.x, c.y, c.z, v.max(0.0), luminance(c)];
+                }
             }
-            let (c, v) = pixel(i);
-            // (`max` also makes NaN 0.)
-            if c.is_finite() {
-                [c.x, c.y, c.z, v.max(0.0), luminance(c)]
-            } else {
-                off
-            }
+            OFF_SURFACE
         });
         Self { colour: [r, g, b], var, lum, width: w, pad }
     }
@@ -194,7 +195,7 @@ impl Signal {
     /// The pixels, row-major, without the padding, into `out`.
     pub fn pixels_into(&self, out: &mut [Vec3]) {
         let (w, stride) = (self.width, self.width + 2 * self.pad);
-        assert_eq!(out.len(), self.colour[0].len() / stride * w, "one value per pixel");
+        assert_eq!(out.len(), self.pixel_count(), "one value per pixel");
         out.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
             let j = y * stride + self.pad;
             let [r, g, b] = &self.colour;
@@ -206,9 +207,13 @@ impl Signal {
 
     /// The pixels, row-major, without the padding.
     pub fn pixels(&self) -> Vec<Vec3> {
-        let mut out = vec![Vec3::ZERO; self.colour[0].len() / (self.width + 2 * self.pad) * self.width];
+        let mut out = vec![Vec3::ZERO; self.pixel_count()];
         self.pixels_into(&mut out);
         out
+    }
+
+    fn pixel_count(&self) -> usize {
+        self.colour[0].len() / (self.width + 2 * self.pad) * self.width
     }
 }
 
@@ -224,21 +229,24 @@ impl Signal {
     /// A signal laid out for `guide` with every pixel off the surfaces (0, and an infinite
     /// luminance): what a pass writes into, row by row.
     fn empty(guide: &GuidePlanes) -> Self {
-        let plane = |fill| vec![fill; guide.stride * guide.height];
-        Self {
-            colour: [plane(0.0), plane(0.0), plane(0.0)],
-            var: plane(0.0),
-            lum: plane(f32::INFINITY),
-            width: guide.width,
-            pad: guide.pad,
-        }
+        let [r, g, b, var, lum] = OFF_SURFACE.map(|fill| vec![fill; guide.stride * guide.height]);
+        Self { colour: [r, g, b], var, lum, width: guide.width, pad: guide.pad }
+    }
+
+    /// Whether it is laid out for `guide` (what a pass reads and writes).
+    fn fits(&self, guide: &GuidePlanes) -> bool {
+        let len = guide.stride * guide.height;
+        self.width == guide.width
+            && self.pad == guide.pad
+            && self.colour.iter().chain([&self.var, &self.lum]).all(|p| p.len() == len)
     }
 }
 
 impl Atrous {
     /// Runs the passes over `signal`; `after_first(&signal)` sees the result of the first pass
     /// (SVGF keeps it as the temporal history). `guide` must have been made for at least
-    /// this filter's passes.
+    /// this filter's passes, and `signal` laid out for it (its memory takes a later pass's
+    /// output).
     pub(crate) fn filter(
         &self,
         guide: &GuidePlanes,
@@ -247,6 +255,7 @@ impl Atrous {
     ) -> Signal {
         // Each pass writes into the planes the pass before it read: one signal's memory more
         // for the whole filter, not one per pass.
+        assert!(signal.fits(guide), "the signal was laid out for another guide");
         let mut spare: Option<Signal> = None;
         let mut blurred = vec![0.0; guide.stride * guide.height];
         for pass in 0..self.passes {
@@ -265,9 +274,12 @@ impl Atrous {
     }
 
     /// One pass with taps `step` pixels apart, from `signal` (whose variance is `blurred`
-    /// after [`blurred_variance`]) into `out` (laid out for `guide` as `signal` is; every
-    /// pixel is written, the padding is left as it is).
+    /// after [`blurred_variance`]) into `out` (laid out for `guide` as `signal` is). Every
+    /// pixel is written; the padding keeps its values (the lanes of a row's last chunk that
+    /// fall in it write the same values again).
     fn pass(&self, guide: &GuidePlanes, signal: &Signal, blurred: &[f32], step: usize, out: &mut Signal) {
+        // Each row of `out` is one row of the image (the rows below take it so).
+        assert!(out.fits(guide), "the output was laid out for another guide");
         let stride = guide.stride;
         let wide = SimdLevel::detect() == SimdLevel::Avx2;
         #[cfg(target_arch = "x86_64")]
@@ -333,8 +345,8 @@ impl Atrous {
 
     /// Row `y` of the pass, `V::N` centre pixels at a time: their data and their sums stay in
     /// registers while the 25 taps are added in turn, and the normalised result goes
-    /// straight to the output rows (colour, variance and luminance; 0, 0 and an infinite
-    /// luminance off surfaces and where every tap dropped out).
+    /// straight to the output rows (colour, variance and luminance; [`OFF_SURFACE`]'s values
+    /// off surfaces, where every tap dropped out, and where the result is not finite).
     ///
     /// # Safety
     /// The CPU must have what `V`'s operations use (see [`Lanes`]).
@@ -344,6 +356,7 @@ impl Atrous {
         // Every plane the taps read holds `h` padded rows, and the farthest tap of a chunk
         // stays within its row's padding (the loads below rely on both).
         let len = stride * h;
+        assert!(y < h, "row {y} of {h}");
         assert!(step.saturating_mul(2).min(w) + MAX_LANES <= pad, "the guide was made for fewer passes");
         assert!(taps.lum.len() == len && taps.var.len() == len && taps.colour.iter().all(|p| p.len() == len));
         assert!(guide.normal.iter().chain(&guide.position).all(|p| p.len() == len));
@@ -422,8 +435,8 @@ impl Atrous {
                 }
                 // The weighted means, and the variance of the weighted sum; kept on surfaces
                 // whose taps did not all drop and whose result is finite (a non-finite
-                // sample's pixel keeps the values of the pixels off surfaces, as in
-                // `Signal::new`).
+                // sample's pixel takes the values of the pixels off surfaces, as in
+                // `Signal::from_fn`).
                 let (cr, cg, cb) = (sr.div(sw), sg.div(sw), sb.div(sw));
                 let var = sv.div(sw.mul(sw)).max(zero);
                 let finite = V::and(V::and(cr.abs().lt(infinity), cg.abs().lt(infinity)), cb.abs().lt(infinity));
@@ -451,8 +464,8 @@ unsafe fn luminance_lanes<V: Lanes>(r: V, g: V, b: V) -> V {
 }
 
 /// The variance smoothed by a 3×3 Gaussian over surface pixels, as SVGF does before each pass:
-/// one pixel's variance estimate from few samples is itself noisy. Into `out`, [`padded`]
-/// (its padding is left as it is: 0).
+/// one pixel's variance estimate from few samples is itself noisy. Into `out`, laid out as
+/// the signal's planes (its padding is left as it is: 0).
 fn blurred_variance(guide: &GuidePlanes, signal: &Signal, out: &mut [f32]) {
     let surface = &guide.surface_blurred;
     blur_3x3_into(&signal.var, guide.width, guide.height, guide.pad, out, |i, sum| {
@@ -479,17 +492,18 @@ fn blur_3x3_into(
     const GAUSS: [f32; 3] = [0.25, 0.5, 0.25];
     let stride = w + 2 * pad;
     assert!(plane.len() == stride * h && out.len() == stride * h);
-    let across = |y: usize, x: usize| {
-        let row = &plane[y * stride + pad..y * stride + pad + w];
+    let row = |y: usize| &plane[y * stride + pad..y * stride + pad + w];
+    let across = |row: &[f32], x: usize| {
         let left = if x > 0 { row[x - 1] } else { 0.0 };
         let right = if x + 1 < w { row[x + 1] } else { 0.0 };
         GAUSS[0] * left + GAUSS[1] * row[x] + GAUSS[2] * right
     };
     out.par_chunks_mut(stride.max(1)).enumerate().for_each(|(y, row_out)| {
+        let (above, this, below) = ((y > 0).then(|| row(y - 1)), row(y), (y + 1 < h).then(|| row(y + 1)));
         for x in 0..w {
-            let up = if y > 0 { across(y - 1, x) } else { 0.0 };
-            let down = if y + 1 < h { across(y + 1, x) } else { 0.0 };
-            row_out[pad + x] = finish(y * w + x, GAUSS[0] * up + GAUSS[1] * across(y, x) + GAUSS[2] * down);
+            let up = above.map_or(0.0, |r| across(r, x));
+            let down = below.map_or(0.0, |r| across(r, x));
+            row_out[pad + x] = finish(y * w + x, GAUSS[0] * up + GAUSS[1] * across(this, x) + GAUSS[2] * down);
         }
     });
 }
@@ -588,8 +602,7 @@ mod tests {
         let atrous = Atrous::default();
         // The output rows a variant writes, from the values of pixels off surfaces.
         let rows = |variant: &dyn Fn(OutRow)| {
-            let mut rows: [Vec<f32>; 5] =
-                std::array::from_fn(|k| vec![if k == 4 { f32::INFINITY } else { 0.0 }; planes.stride]);
+            let mut rows = OFF_SURFACE.map(|fill| vec![fill; planes.stride]);
             let [r, g, b, v, l] = &mut rows;
             variant([r, g, b, v, l]);
             rows

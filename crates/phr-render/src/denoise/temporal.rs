@@ -47,8 +47,9 @@ fn same_surface(
 /// History lengths stop growing here (only the blend weight's floor matters beyond).
 const MAX_HISTORY: f32 = 256.0;
 
-/// SVGF with [`Atrous`] as its spatial filter. Holds the previous frame.
-#[derive(Clone, Debug)]
+/// SVGF with [`Atrous`] as its spatial filter. Holds the previous frame, and the memory of
+/// the one before (the next frame's history is written into it).
+#[derive(Debug)]
 pub struct Temporal {
     pub atrous: Atrous,
     /// Smallest weight of a new frame in the blend (`1/length` before that: a plain mean). SVGF
@@ -57,6 +58,13 @@ pub struct Temporal {
     history: Option<History>,
     /// The history before that, whose memory the next frame's history reuses.
     spare: Option<History>,
+}
+
+impl Clone for Temporal {
+    /// The filter and its history (not the spare memory).
+    fn clone(&self) -> Self {
+        Self { atrous: self.atrous, min_alpha: self.min_alpha, history: self.history.clone(), spare: None }
+    }
 }
 
 impl Default for Temporal {
@@ -94,7 +102,10 @@ struct Reprojected {
 impl Temporal {
     /// Forgets the previous frames (the next frame starts a new history).
     pub fn reset(&mut self) {
-        self.history = None;
+        // Its memory serves the next history.
+        if let Some(history) = self.history.take() {
+            self.spare = Some(history);
+        }
     }
 
     /// Frames blended into `pixel`'s history by the last [`Temporal::denoise`] (0 off surfaces).
@@ -173,16 +184,16 @@ impl Temporal {
     }
 
     /// The variance of pixel `i`'s blended estimate (its moments and history length in
-    /// `blended`): the sample variance from its moments (or its neighbours' on a short
-    /// history) times the blend's share of one sample.
-    fn variance(&self, guide: &Guide, blended: &History, i: usize) -> f32 {
+    /// `next`, the history being made): the sample variance from its moments (or its
+    /// neighbours' on a short history) times the blend's share of one sample.
+    fn variance(&self, guide: &Guide, next: &History, i: usize) -> f32 {
         let (w, h) = (guide.width as i64, guide.height as i64);
-        let length = blended.length[i];
+        let length = next.length[i];
         if length <= 0.0 {
             return 0.0;
         }
         let [m1, m2] = if length >= SPATIAL_VARIANCE_UNTIL {
-            blended.moments[i]
+            next.moments[i]
         } else {
             // A 7×7 neighbourhood of the same surface (weights as the filter's, without
             // the luminance).
@@ -193,11 +204,11 @@ impl Temporal {
                 for qx in (x - 3).max(0)..(x + 4).min(w) {
                     let j = (qy * w + qx) as usize;
                     let offset = (((qx - x).pow(2) + (qy - y).pow(2)) as f32).sqrt().max(1.0);
-                    if blended.length[j] <= 0.0 || !same_surface(n, p, f, guide.normal[j], guide.position[j], offset) {
+                    if next.length[j] <= 0.0 || !same_surface(n, p, f, guide.normal[j], guide.position[j], offset) {
                         continue;
                     }
-                    sum[0] += blended.moments[j][0];
-                    sum[1] += blended.moments[j][1];
+                    sum[0] += next.moments[j][0];
+                    sum[1] += next.moments[j][1];
                     total += 1.0;
                 }
             }
