@@ -354,6 +354,12 @@ impl LeafVisitor for AnyTriangle<'_> {
         let mut r = *ray;
         self.0.leaf_hits(first, count, &mut r, |_, _, _| true)
     }
+
+    /// As [`ClosestTriangle`]'s: a pushed leaf's block is asked for when it is pushed.
+    #[inline(always)]
+    fn prefetch(&self, first: u32) {
+        self.0.prefetch(first);
+    }
 }
 
 impl<const N: usize> WideBvh<N>
