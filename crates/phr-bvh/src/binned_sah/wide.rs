@@ -18,7 +18,7 @@
 
 use super::{BinnedSahOptions, Bins, Bounds, Ctx, Decision, PrimRef, MAX_PRIMS};
 use crate::aabb::Aabb;
-use crate::wide::pieces::{assemble, build_piece, place_leaf, WideBuilt, WidePiece};
+use crate::wide::pieces::{assemble, build_piece, place_leaf, slots_by_size, WideBuilt, WidePiece};
 use crate::wide::{CollapseOptions, WideBvh, WideNode};
 use rayon::prelude::*;
 
@@ -175,22 +175,24 @@ impl WideCtx {
         (place_leaf(prims, start, self.align) as u32, s.len() as u32)
     }
 
-    /// The wide node over `slots`: every slot's box, leaves emitted into `prims`, and for each
-    /// interior slot the child index that `interior(slot index)` returns.
+    /// The wide node over `slots`, each in the node slot [`slots_by_size`] gives it: every
+    /// slot's box, leaves emitted into `prims`, and for each interior slot the child index
+    /// that `interior(index in slots, node slot)` returns (called in the order of `slots`).
     fn node<const N: usize>(
         &self,
         refs: &[PrimRef],
         slots: &[Slot],
         prims: &mut Vec<u32>,
-        mut interior: impl FnMut(usize) -> u32,
+        mut interior: impl FnMut(usize, usize) -> u32,
     ) -> WideNode<N> {
         let mut node = WideNode::<N>::EMPTY;
-        for (i, s) in slots.iter().enumerate() {
-            node.set_child_bounds(i, s.bounds.aabb());
+        let at = slots_by_size::<N>(slots.iter().map(|s| s.len() as u32));
+        for (i, (&slot, s)) in at.iter().zip(slots).enumerate() {
+            node.set_child_bounds(slot, s.bounds.aabb());
             if s.leaf {
-                (node.child[i], node.count[i]) = self.emit_leaf(refs, s, prims);
+                (node.child[slot], node.count[slot]) = self.emit_leaf(refs, s, prims);
             } else {
-                node.child[i] = interior(i);
+                node.child[slot] = interior(i, slot);
             }
         }
         node
@@ -249,16 +251,16 @@ impl WideCtx {
         let depth = depth + k - 1;
         let mut leaf_prims = Vec::new();
         let mut interior = Vec::new();
-        let node = self.node(refs, &slots[..k], &mut leaf_prims, |i| {
-            interior.push(i);
+        let node = self.node(refs, &slots[..k], &mut leaf_prims, |i, slot| {
+            interior.push((i, slot));
             0
         });
         // Each interior slot gets its own range of the references (they are disjoint), and
         // the splits made within it.
-        interior.sort_unstable_by_key(|&i| slots[i].start);
+        interior.sort_unstable_by_key(|&(i, _)| slots[i].start);
         let (mut rest, mut offset) = (refs, 0usize);
         let mut jobs = Vec::with_capacity(interior.len());
-        for i in interior {
+        for (i, slot) in interior {
             let s = slots[i];
             let (_, tail) = std::mem::take(&mut rest).split_at_mut(s.start as usize - offset);
             let (mine, tail) = tail.split_at_mut(s.len());
@@ -273,11 +275,11 @@ impl WideCtx {
                 })
                 .collect();
             let (s, split) = s.rebased(splits[i]);
-            jobs.push((i, mine, s, split, within));
+            jobs.push((slot, mine, s, split, within));
         }
         let children: Vec<(usize, WideBuilt<N>)> = jobs
             .into_par_iter()
-            .map(|(i, mine, s, split, within)| (i, self.build(mine, s, split, within, depth)))
+            .map(|(slot, mine, s, split, within)| (slot, self.build(mine, s, split, within, depth)))
             .collect();
         let bound = children.iter().map(|(_, c)| c.bound()).max().unwrap_or(0).max(depth);
         WideBuilt::Split { node, leaf_prims, children, bound }
@@ -302,7 +304,7 @@ impl WideCtx {
             self.align,
             |item, prims, children| {
                 let k = self.slots(refs, item, &mut slots, &mut splits, known, &mut bins);
-                (self.node(refs, &slots[..k], prims, |i| children.push((slots[i], splits[i]))), k)
+                (self.node(refs, &slots[..k], prims, |i, _| children.push((slots[i], splits[i]))), k)
             },
             // The first slot's subtree is built first.
             |pushed| pushed.reverse(),

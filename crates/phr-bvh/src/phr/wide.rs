@@ -22,7 +22,7 @@
 use super::cut::{cut_bounds, cut_prims, CutNode};
 use super::{AuxTree, Ctx, PhrOptions, PhrStats, Ranges, Scratch, THRESHOLD_TABLE};
 use crate::aabb::Aabb;
-use crate::wide::pieces::{assemble, build_piece, place_leaf, WideBuilt, WidePiece};
+use crate::wide::pieces::{assemble, build_piece, place_leaf, slots_by_size, WideBuilt, WidePiece};
 use crate::wide::{CollapseOptions, WideBvh, WideNode};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -193,8 +193,9 @@ impl WideCtx<'_, '_> {
         (place_leaf(prims, start, self.align) as u32, scratch.leaf_prims.len() as u32)
     }
 
-    /// The wide node over `slots`: every slot's box, leaves emitted into `prims`, and for each
-    /// interior slot the child index that `interior(slot index, slot)` returns.
+    /// The wide node over `slots`, each in the node slot [`slots_by_size`] gives it: every
+    /// slot's box, leaves emitted into `prims`, and for each interior slot the child index
+    /// that `interior(node slot, slot)` returns (called in the order of `slots`).
     fn node<const N: usize>(
         &self,
         pool: &[CutNode],
@@ -204,7 +205,8 @@ impl WideCtx<'_, '_> {
         mut interior: impl FnMut(usize, &Slot) -> u32,
     ) -> WideNode<N> {
         let mut node = WideNode::<N>::EMPTY;
-        for (i, s) in slots.iter().enumerate() {
+        let at = slots_by_size::<N>(slots.iter().map(|s| s.prims));
+        for (&i, s) in at.iter().zip(slots) {
             node.set_child_bounds(i, s.bounds);
             if s.is_leaf() {
                 (node.child[i], node.count[i]) = self.emit_leaf(pool, s, prims, &mut scratch.phr);

@@ -33,7 +33,7 @@
 //! a boundary of the packed triangles' 4-lane blocks ([`CollapseOptions::leaf_align`]; the
 //! gaps hold [`super::PAD`]), so it is one SIMD test; small leaves share blocks.
 
-use super::pieces::{assemble, build_piece, place_leaf, WideBuilt, WidePiece};
+use super::pieces::{assemble, build_piece, place_leaf, slots_by_size, WideBuilt, WidePiece};
 use super::WideNode;
 use crate::aabb::Aabb;
 use crate::node::Bvh;
@@ -315,8 +315,9 @@ impl Emit<'_> {
         (place_leaf(out, start, self.align) as u32, count as u32)
     }
 
-    /// The wide node over the slots `kids`: every slot's box, leaves emitted into `prims`,
-    /// and for each interior slot the child index that `interior(slot, kid)` returns.
+    /// The wide node over the slots `kids`, each in the node slot [`slots_by_size`] gives it:
+    /// every slot's box, leaves emitted into `prims`, and for each interior slot the child
+    /// index that `interior(node slot, kid)` returns (called in the order of `kids`).
     fn node<const N: usize>(
         &self,
         kids: &[u32],
@@ -325,7 +326,8 @@ impl Emit<'_> {
         mut interior: impl FnMut(usize, u32) -> u32,
     ) -> WideNode<N> {
         let mut node = WideNode::<N>::EMPTY;
-        for (slot, &kid) in kids.iter().enumerate() {
+        let at = slots_by_size::<N>(kids.iter().map(|&kid| self.bins[kid as usize].prims));
+        for (&slot, &kid) in at.iter().zip(kids) {
             node.set_child_bounds(slot, self.bins[kid as usize].bounds);
             if self.is_leaf(kid) {
                 (node.child[slot], node.count[slot]) = self.emit_leaf(kid, prims, stack);

@@ -32,6 +32,31 @@ pub(crate) fn place_leaf(prims: &mut Vec<u32>, start: usize, block: usize) -> us
     start + pad
 }
 
+/// Where each of a wide node's children goes: the slots ordered by the number of primitives
+/// under each child, largest first (equal sizes keep their order), given the sizes in the
+/// order the builder made the children. This is Embree's order "for faster shadow ray
+/// traversal": an any-hit query visits the last hit slot first, the smallest subtree, which
+/// is the one most likely to end the query soonest; closest-hit queries sort the hit
+/// children by distance and do not care. Only the slots move: the builders still lay the
+/// children's subtrees out in the order they made them, which keeps their memory order.
+#[inline]
+pub(crate) fn slots_by_size<const N: usize>(sizes: impl Iterator<Item = u32>) -> [usize; N] {
+    let mut size = [0u32; N];
+    let mut k = 0;
+    for s in sizes {
+        size[k] = s;
+        k += 1;
+    }
+    // A child's slot is the number of children before it in the order: larger ones, and
+    // equal ones made before it. (Entries past the children keep their own index.)
+    std::array::from_fn(|i| {
+        if i >= k {
+            return i;
+        }
+        (0..k).filter(|&j| size[j] > size[i] || (size[j] == size[i] && j < i)).count()
+    })
+}
+
 /// Pads `prims` to a whole number of blocks of `block` entries (the end of a piece, so the
 /// next piece starts a block).
 #[inline]
@@ -200,4 +225,16 @@ pub(crate) fn assemble<const N: usize>(
         }
         out_prims.copy_from_slice(&p.piece.prims);
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::slots_by_size;
+
+    #[test]
+    fn slots_by_size_is_a_stable_largest_first_order() {
+        assert_eq!(slots_by_size::<8>([3, 9, 3, 1, 9].into_iter()), [2, 0, 3, 4, 1, 5, 6, 7]);
+        assert_eq!(slots_by_size::<4>([5, 5].into_iter()), [0, 1, 2, 3]);
+        assert_eq!(slots_by_size::<4>(std::iter::empty()), [0, 1, 2, 3]);
+    }
 }

@@ -13,7 +13,9 @@
 //!   the keys `t_bits << 32 | slot` and push one child at a time.
 //!
 //! Any-hit queries push the hit children unsorted (the first hit ends the query wherever it
-//! is found).
+//! is found) and go to the last hit slot: the builders put a node's children in its slots
+//! largest subtree first ([`super::pieces::slots_by_size`]), so a query visits the smallest
+//! hit subtree first and pops the others smallest first, Embree's order for shadow rays.
 //!
 //! A leaf child is a stack entry like a node, with its primitive count, so leaves are tested
 //! in entry-distance order too. Popped entries whose entry distance exceeds the closest hit
@@ -339,17 +341,18 @@ impl<const N: usize> Walk<N> {
                 }
                 debug_assert!(stack.sp <= stack_bound, "wide traversal: stack bound exceeded");
                 if ANY {
-                    // Any hit needs no order: push the children in slot order (no sort, no
-                    // distance compare) and go to the first, as Embree's occlusion traversal.
-                    let first = mask.trailing_zeros() as usize;
-                    let mut m = mask & (mask - 1);
+                    // Any hit needs no distance order: push the children in slot order (no
+                    // sort, no distance compare) and go to the last, the smallest subtree, as
+                    // Embree's occlusion traversal does; the pushed ones pop smallest first.
+                    let last = 31 - mask.leading_zeros() as usize;
+                    let mut m = mask & !(1 << last);
                     while m != 0 {
                         let i = m.trailing_zeros() as usize;
                         m &= m - 1;
                         // SAFETY: see `Stack`.
                         unsafe { push(node, i, t[i], nodes, leaves, stack) };
                     }
-                    self.cur = Entry { child: node.child[first], count: node.count[first], t: t[first] };
+                    self.cur = Entry { child: node.child[last], count: node.count[last], t: t[last] };
                     return true;
                 }
                 let rest = mask & (mask - 1);

@@ -191,8 +191,40 @@ pub fn canonical_wide<const N: usize>(wide: &phr_bvh::WideBvh<N>) -> Vec<u64> {
     out
 }
 
-/// Checks a wide tree over `tris` (`boxes` their boxes): the wide invariants, and brute
-/// force's closest hits on 100 random rays. Returns its leaf count.
+/// Checks that every node of `wide` holds its children largest subtree first (primitives
+/// under each slot, non-increasing), with the empty slots last: the order the any-hit
+/// traversal relies on to visit the smallest hit subtree first.
+pub fn assert_slots_largest_first<const N: usize>(wide: &phr_bvh::WideBvh<N>, what: &str) {
+    fn size<const N: usize>(wide: &phr_bvh::WideBvh<N>, n: u32, memo: &mut [u64]) -> u64 {
+        if memo[n as usize] == u64::MAX {
+            let node = &wide.nodes[n as usize];
+            memo[n as usize] = (0..N).map(|i| slot_size(wide, node, i, memo)).sum();
+        }
+        memo[n as usize]
+    }
+    fn slot_size<const N: usize>(
+        wide: &phr_bvh::WideBvh<N>,
+        node: &phr_bvh::wide::WideNode<N>,
+        i: usize,
+        memo: &mut [u64],
+    ) -> u64 {
+        match (node.is_used(i), node.count[i]) {
+            (false, _) => 0,
+            (true, 0) => size(wide, node.child[i], memo),
+            (true, count) => u64::from(count),
+        }
+    }
+    let mut memo = vec![u64::MAX; wide.nodes.len()];
+    for (n, node) in wide.nodes.iter().enumerate() {
+        let sizes: Vec<u64> = (0..N).map(|i| slot_size(wide, node, i, &mut memo)).collect();
+        assert!(sizes.windows(2).all(|w| w[0] >= w[1]), "{what}: node {n}'s slots are not largest first: {sizes:?}");
+        let used: Vec<bool> = (0..N).map(|i| node.is_used(i)).collect();
+        assert!(used.windows(2).all(|w| w[0] >= w[1]), "{what}: node {n} has an empty slot before a used one");
+    }
+}
+
+/// Checks a wide tree over `tris` (`boxes` their boxes): the wide invariants, the slots'
+/// order, and brute force's closest hits on 100 random rays. Returns its leaf count.
 pub fn assert_wide_tree_sound<const N: usize>(
     wide: &phr_bvh::WideBvh<N>,
     boxes: &[Aabb],
@@ -203,6 +235,7 @@ where
     phr_bvh::wide::Lanes<N>: phr_bvh::wide::Width<N>,
 {
     wide.validate(boxes).unwrap_or_else(|e| panic!("{what}: {e}"));
+    assert_slots_largest_first(wide, what);
     let packed = phr_bvh::PackedTriangles::new(&wide.prim_indices, tris);
     let bounds = boxes.iter().fold(Aabb::EMPTY, |a, b| a.union(*b));
     let mut rng = Rng::new(tris.len() as u64);
