@@ -382,14 +382,15 @@ impl<const N: usize> Walk<N> {
                 }
             }
         }
-        // Pop the next entry that still starts before the closest hit.
+        // Pop the next entry that still starts before the closest hit. (An any-hit query's
+        // `tmax` never shrinks, so each entry still starts within it: no compare.)
         loop {
             if stack.sp == 0 {
                 return false;
             }
             // SAFETY: `sp > 0`.
             let e = unsafe { stack.pop() };
-            if e.t <= ray.tmax * ROBUST_SLAB {
+            if ANY || e.t <= ray.tmax * ROBUST_SLAB {
                 self.cur = e;
                 return true;
             }
