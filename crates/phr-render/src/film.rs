@@ -48,13 +48,17 @@ impl Film {
     /// Adds one frame: one sample per pixel, row-major from the top left.
     pub fn add_frame(&mut self, frame: &[Vec3]) {
         assert_eq!(frame.len(), self.sum.len());
-        for ((s, q), x) in self.sum.iter_mut().zip(self.sum_sq.iter_mut()).zip(frame) {
-            for c in 0..3 {
-                let v = x[c] as f64;
-                s[c] += v;
-                q[c] += v * v;
-            }
-        }
+        // In parallel: one addition per pixel either way, so the same sums on any thread count.
+        use rayon::prelude::*;
+        self.sum.par_iter_mut().zip(self.sum_sq.par_iter_mut()).zip(frame).with_min_len(4096).for_each(
+            |((s, q), x)| {
+                for c in 0..3 {
+                    let v = x[c] as f64;
+                    s[c] += v;
+                    q[c] += v * v;
+                }
+            },
+        );
         self.samples += 1;
     }
 

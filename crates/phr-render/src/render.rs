@@ -122,8 +122,7 @@ impl Renderer<'_> {
     /// Renders frame number `frame` (1 sample per pixel); pixels row-major from the top left.
     pub fn render_frame(&self, frame: u32) -> (Vec<Vec3>, FrameStats) {
         if self.tracing == Tracing::Wavefront {
-            let (pixels, stats) = self.render_tiles(|x0, y0| self.wavefront_tile::<false>(frame, x0, y0));
-            return (pixels.into_iter().map(|(colour, _)| colour).collect(), stats);
+            return self.render_tiles(|x0, y0| self.wavefront_tile::<false, _>(frame, x0, y0, |colour, _| colour));
         }
         self.render_frame_with(frame, |ray, rng| {
             let sample = self.tracer.trace(ray, rng);
@@ -135,7 +134,8 @@ impl Renderer<'_> {
     /// colour came from (what the denoiser's guide is made of, at no extra ray).
     pub fn render_frame_guided(&self, frame: u32) -> (Vec<Vec3>, Vec<FirstHit>, FrameStats) {
         let (pixels, stats) = match self.tracing {
-            Tracing::Wavefront => self.render_tiles(|x0, y0| self.wavefront_tile::<true>(frame, x0, y0)),
+            Tracing::Wavefront => self
+                .render_tiles(|x0, y0| self.wavefront_tile::<true, _>(frame, x0, y0, |colour, first| (colour, first))),
             Tracing::Single => self.render_frame_with(frame, |ray, rng| {
                 let (sample, first) = self.tracer.trace_guided(ray, rng);
                 ((sample.radiance, first), sample.rays)
@@ -164,9 +164,15 @@ impl Renderer<'_> {
 
     /// The paths of one tile (corner `x0, y0`) as a wavefront: every live path's next ray is
     /// intersected in one batch, then each path advances one segment, until none is left.
-    /// Pixels in the tile's row-major order, with the rays traced. `GUIDE`: each pixel's first
-    /// hit too (else [`FirstHit::SKY`]).
-    fn wavefront_tile<const GUIDE: bool>(&self, frame: u32, x0: u32, y0: u32) -> (Vec<(Vec3, FirstHit)>, u64) {
+    /// Pixels in the tile's row-major order, each `pixel(colour, first hit)`, with the rays
+    /// traced. `GUIDE`: the first hits are found (else they are [`FirstHit::SKY`]).
+    fn wavefront_tile<const GUIDE: bool, T>(
+        &self,
+        frame: u32,
+        x0: u32,
+        y0: u32,
+        pixel: impl Fn(Vec3, FirstHit) -> T,
+    ) -> (Vec<T>, u64) {
         let mut paths = Vec::with_capacity((TILE * TILE) as usize);
         for y in y0..(y0 + TILE).min(self.height) {
             for x in x0..(x0 + TILE).min(self.width) {
@@ -215,7 +221,7 @@ impl Renderer<'_> {
             .map(|(path, _, first)| {
                 let sample = path.sample();
                 traced += u64::from(sample.rays);
-                (sample.radiance, first)
+                pixel(sample.radiance, first)
             })
             .collect();
         (pixels, traced)
