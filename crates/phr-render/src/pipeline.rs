@@ -35,6 +35,7 @@ use crate::lights::LightSet;
 use crate::output::{srgb_encode, turbo};
 use crate::rebuild::AsyncRebuilder;
 use crate::render::Renderer;
+use crate::sampler::JitterTable;
 use crate::scene::RenderSettings;
 use crate::scene::Scene;
 use glam::Vec3;
@@ -42,6 +43,7 @@ use phr_bvh::binned_sah::build_binned_sah_wide;
 use phr_bvh::dynamic::DynamicBvh;
 use phr_bvh::phr::PhrOptions;
 use phr_bvh::{sah_cost, wide_sah_cost, Aabb, Builder, SahConstants, TraversalStats};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// [`PipelineKind::Async`] starts a rebuild when the refitted tree's SAH cost exceeds this
@@ -258,6 +260,8 @@ pub struct FramePipeline {
     samples: u32,
     frame: u64,
     seed: u64,
+    /// The pixels' jitter offsets under `seed`, handed from one frame's renderer to the next.
+    jitter: Option<Arc<JitterTable>>,
     tree_dirty: bool,
     sah: f64,
     /// The deforming part's primitive boxes, kept for the next frame's memory.
@@ -313,6 +317,7 @@ impl FramePipeline {
             samples: 0,
             frame: 0,
             seed: 0,
+            jitter: None,
             tree_dirty: true,
             sah: 0.0,
             part_boxes: Vec::new(),
@@ -716,7 +721,11 @@ impl FramePipeline {
         let s = &self.settings;
         let size = RenderSettings { width: s.width, height: s.height, spp: 1, max_depth: s.max_depth.max(1) };
         let lights = self.lights.as_ref().filter(|_| s.explicit_lights);
-        let renderer = Renderer::new(&self.scene, &self.geometry, &self.camera, &size, lights).with_seed(self.seed);
+        let renderer = Renderer::new(&self.scene, &self.geometry, &self.camera, &size, lights)
+            .with_seed(self.seed)
+            .with_jitter(self.jitter.take());
+        // Kept for the next frame's renderer (made now if the seed or the size changed).
+        self.jitter = Some(renderer.jitter_table());
         // While accumulating, the frame number picks new random numbers for every sample;
         // while animating, it keeps the noise from freezing in place.
         let frame = self.frame as u32;
@@ -782,7 +791,9 @@ impl FramePipeline {
     fn trace_guide(&self, samples: u32) -> Guide {
         let s = &self.settings;
         let size = RenderSettings { width: s.width, height: s.height, spp: 1, max_depth: s.max_depth.max(1) };
-        let renderer = Renderer::new(&self.scene, &self.geometry, &self.camera, &size, None).with_seed(self.seed);
+        let renderer = Renderer::new(&self.scene, &self.geometry, &self.camera, &size, None)
+            .with_seed(self.seed)
+            .with_jitter(self.jitter.clone());
         Guide::render(&renderer, samples)
     }
 

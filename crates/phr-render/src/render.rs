@@ -11,11 +11,12 @@ use crate::camera::{Camera, CameraDesc};
 use crate::geometry::Geometry;
 use crate::integrator::{FirstHit, Path, PathTracer};
 use crate::lights::LightSet;
-use crate::sampler::Pcg32;
+use crate::sampler::{JitterTable, Pcg32};
 use crate::scene::{RenderSettings, Scene};
 use glam::Vec3;
 use phr_bvh::TraversalStats;
 use rayon::prelude::*;
+use std::sync::{Arc, OnceLock};
 
 const TILE: u32 = 16;
 
@@ -62,6 +63,9 @@ pub struct Renderer<'a> {
     pub height: u32,
     pub seed: u64,
     pub tracing: Tracing,
+    /// The pixels' jitter offsets under `seed`, made at the first camera ray (or handed over
+    /// by [`Renderer::with_jitter`]: a caller that makes a renderer per frame keeps them).
+    jitter: OnceLock<Arc<JitterTable>>,
 }
 
 /// Work done in one frame.
@@ -99,12 +103,37 @@ impl<'a> Renderer<'a> {
             height,
             seed: 0,
             tracing: Tracing::default(),
+            jitter: OnceLock::new(),
         }
     }
 
     /// The same renderer with another seed (images differ by seed, not by thread count).
     pub fn with_seed(self, seed: u64) -> Self {
-        Self { seed, ..self }
+        Self { seed, jitter: OnceLock::new(), ..self }
+    }
+
+    /// The same renderer with the jitter offsets of an earlier one ([`Renderer::jitter_table`]),
+    /// if they are for its seed and size (else it makes its own when it needs them).
+    pub fn with_jitter(self, table: Option<Arc<JitterTable>>) -> Self {
+        let jitter = OnceLock::new();
+        if let Some(table) = table.filter(|t| t.fits(self.seed, self.pixel_count())) {
+            let _ = jitter.set(table);
+        }
+        Self { jitter, ..self }
+    }
+
+    /// The pixels' jitter offsets under this renderer's seed (made now if not yet), to hand
+    /// to the next frame's renderer.
+    pub fn jitter_table(&self) -> Arc<JitterTable> {
+        Arc::clone(self.jitter())
+    }
+
+    fn jitter(&self) -> &Arc<JitterTable> {
+        self.jitter.get_or_init(|| Arc::new(JitterTable::new(self.seed, self.pixel_count())))
+    }
+
+    fn pixel_count(&self) -> usize {
+        self.width as usize * self.height as usize
     }
 
     /// The same renderer tracing its paths another way (the same image).
@@ -289,7 +318,7 @@ impl Renderer<'_> {
     fn camera_sample(&self, frame: u32, pixel: u32) -> (phr_bvh::Ray, Pcg32) {
         let (x, y) = (pixel % self.width, pixel / self.width);
         let rng = Pcg32::for_pixel(self.seed, frame, pixel);
-        let (jx, jy) = Pcg32::pixel_jitter(self.seed, frame, pixel);
+        let (jx, jy) = self.jitter().jitter(frame, pixel);
         (self.camera.ray(x as f32 + jx, y as f32 + jy), rng)
     }
 
