@@ -961,22 +961,28 @@ impl Geometry {
         let copy = hit.part & COPY != 0;
         let instance =
             if copy { self.copies.copy(hit.part & !COPY).1 } else { &self.parts[hit.part as usize].instance };
-        let local = |ray: &Ray| {
-            if copy {
-                self.copies.local_surface(hit.part & !COPY, hit)
-            } else {
-                self.local_surface(&self.parts[hit.part as usize], ray, hit)
-            }
-        };
-        let (position, normal, material, rel) = if instance.is_identity() {
-            local(ray)
+        // One call of the local surface (inlined), with the ray in the object's space.
+        let identity = instance.is_identity();
+        let object_ray;
+        let local_ray = if identity {
+            ray
         } else {
-            let (p, n, material, rel) = local(&instance.object_ray(ray));
+            object_ray = instance.object_ray(ray);
+            &object_ray
+        };
+        let (p, n, material, rel) = if copy {
+            self.copies.local_surface(hit.part & !COPY, hit)
+        } else {
+            self.local_surface(&self.parts[hit.part as usize], local_ray, hit)
+        };
+        let (position, normal) = if identity {
+            (p, n)
+        } else {
             // A mirroring transform turns a triangle's e1 × e2 around; a sphere's outward
             // normal stays outward.
             let flip = instance.mirrors() && (copy || (hit.prim as usize) < self.triangle_count());
             let n = instance.world_normal(if flip { -n } else { n });
-            (instance.world_point(p), n.normalize_or(Vec3::Z), material, rel)
+            (instance.world_point(p), n.normalize_or(Vec3::Z))
         };
         let front = ray.dir.dot(normal) < 0.0;
         let offset = rel * (1.0 + position.abs().max_element());
