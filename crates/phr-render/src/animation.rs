@@ -107,13 +107,18 @@ impl Animator {
                         Animation::Nodes(nodes) if alone => node_parts(mesh, nodes, first_triangle[m], min_triangles),
                         _ => Vec::new(),
                     };
+                    let (indices, rest) = match &a.animation {
+                        Animation::Procedural(_) => in_first_use_order(&mesh.triangles, &mesh.positions),
+                        // Node animations pose vertices by their number in the mesh.
+                        Animation::Nodes(_) => (mesh.triangles.clone(), mesh.positions.clone()),
+                    };
                     meshes.push(PosedMesh {
                         rigid,
                         node_parts,
                         triangles: first_triangle[m]..first_triangle[m] + mesh.triangles.len(),
-                        indices: mesh.triangles.clone(),
-                        rest: mesh.positions.clone(),
-                        posed: mesh.positions.clone(),
+                        indices,
+                        posed: rest.clone(),
+                        rest,
                         animation: a.animation.clone(),
                     });
                 }
@@ -236,6 +241,29 @@ impl Animator {
     }
 }
 
+/// The mesh's vertices renumbered in the order its triangles first use them (unused ones
+/// dropped), and its triangles in those numbers: posing then reads the vertices of
+/// consecutive triangles from nearby memory instead of wherever the file put them. The same
+/// triangles, corner for corner.
+fn in_first_use_order(triangles: &[[u32; 3]], positions: &[Vec3]) -> (Vec<[u32; 3]>, Vec<Vec3>) {
+    let mut number = vec![u32::MAX; positions.len()];
+    let mut order = Vec::with_capacity(positions.len());
+    let indices = triangles
+        .iter()
+        .map(|tri| {
+            tri.map(|k| {
+                let n = &mut number[k as usize];
+                if *n == u32::MAX {
+                    *n = order.len() as u32;
+                    order.push(positions[k as usize]);
+                }
+                *n
+            })
+        })
+        .collect();
+    (indices, order)
+}
+
 impl PosedMesh {
     /// Moves its triangles in `geometry` to time `t`.
     fn pose(&mut self, geometry: &mut Geometry, t: f32) {
@@ -303,4 +331,22 @@ fn node_parts(
         .zip(prims)
         .map(|(part, prims)| NodePart { node: part.node, prims, rest_inverse: nodes.rest_world(part.node).inverse() })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn first_use_order_keeps_every_corner() {
+        let positions: Vec<Vec3> = (0..6).map(|i| Vec3::splat(i as f32)).collect();
+        // Vertex 5 unused; 4 used first.
+        let triangles = [[4, 0, 2], [2, 3, 0], [1, 4, 3]];
+        let (indices, rest) = in_first_use_order(&triangles, &positions);
+        assert_eq!(indices, vec![[0, 1, 2], [2, 3, 1], [4, 0, 3]]);
+        assert_eq!(rest.len(), 5);
+        for (old, new) in triangles.iter().zip(&indices) {
+            assert_eq!(old.map(|k| positions[k as usize]), new.map(|k| rest[k as usize]));
+        }
+    }
 }
