@@ -791,9 +791,7 @@ impl FramePipeline {
     fn trace_guide(&self, samples: u32) -> Guide {
         let s = &self.settings;
         let size = RenderSettings { width: s.width, height: s.height, spp: 1, max_depth: s.max_depth.max(1) };
-        let renderer = Renderer::new(&self.scene, &self.geometry, &self.camera, &size, None)
-            .with_seed(self.seed)
-            .with_jitter(self.jitter.clone());
+        let renderer = Renderer::new(&self.scene, &self.geometry, &self.camera, &size, None).with_seed(self.seed);
         Guide::render(&renderer, samples)
     }
 

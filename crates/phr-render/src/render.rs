@@ -109,7 +109,8 @@ impl<'a> Renderer<'a> {
 
     /// The same renderer with another seed (images differ by seed, not by thread count).
     pub fn with_seed(self, seed: u64) -> Self {
-        Self { seed, jitter: OnceLock::new(), ..self }
+        let table = self.jitter.into_inner();
+        Self { seed, jitter: OnceLock::new(), ..self }.with_jitter(table)
     }
 
     /// The same renderer with the jitter offsets of an earlier one ([`Renderer::jitter_table`]),
@@ -130,6 +131,18 @@ impl<'a> Renderer<'a> {
 
     fn jitter(&self) -> &Arc<JitterTable> {
         self.jitter.get_or_init(|| Arc::new(JitterTable::new(self.seed, self.pixel_count())))
+    }
+
+    /// Where in pixel `pixel` frame `frame` puts its camera ray ([`Pcg32::pixel_jitter`]),
+    /// from the table while it fits the renderer's seed and size (they are public fields).
+    #[inline]
+    fn pixel_jitter(&self, frame: u32, pixel: u32) -> (f32, f32) {
+        let table = self.jitter();
+        if table.fits(self.seed, self.pixel_count()) {
+            table.jitter(frame, pixel)
+        } else {
+            Pcg32::pixel_jitter(self.seed, frame, pixel)
+        }
     }
 
     fn pixel_count(&self) -> usize {
@@ -318,7 +331,7 @@ impl Renderer<'_> {
     fn camera_sample(&self, frame: u32, pixel: u32) -> (phr_bvh::Ray, Pcg32) {
         let (x, y) = (pixel % self.width, pixel / self.width);
         let rng = Pcg32::for_pixel(self.seed, frame, pixel);
-        let (jx, jy) = self.jitter().jitter(frame, pixel);
+        let (jx, jy) = self.pixel_jitter(frame, pixel);
         (self.camera.ray(x as f32 + jx, y as f32 + jy), rng)
     }
 

@@ -106,12 +106,13 @@ pub struct JitterTable {
 }
 
 impl JitterTable {
-    /// The offsets of pixels `0..pixels` under `seed` (in parallel).
+    /// The offsets of pixels `0..pixels` under `seed`. On one thread: a renderer makes its
+    /// table lazily, from inside its parallel tile loop, and a lazy initialiser that used
+    /// rayon there could steal another tile that waits for the same table (rayon's
+    /// documented deadlock). About 6 ms at 512², once per render.
     pub fn new(seed: u64, pixels: usize) -> Self {
-        use rayon::prelude::*;
-        let rotations =
-            (0..pixels as u32).into_par_iter().with_min_len(4096).map(|p| jitter_rotation(seed, p)).collect();
-        Self { seed, rotations }
+        let pixels = u32::try_from(pixels).expect("pixel numbers are u32");
+        Self { seed, rotations: (0..pixels).map(|p| jitter_rotation(seed, p)).collect() }
     }
 
     /// Whether it holds the offsets of `pixels` pixels under `seed`.
@@ -144,8 +145,6 @@ fn wrap_unit(x: f64) -> f32 {
 mod tests {
     use super::*;
 
-    /// The jitter's wrap is `fract`'s, bit for bit, over the range of its arguments (frames up
-    /// to `u32::MAX` times a constant below 1, plus at most 1.5).
     #[test]
     fn the_jitter_table_gives_pixel_jitter() {
         let table = JitterTable::new(7, 5000);
@@ -158,6 +157,8 @@ mod tests {
         }
     }
 
+    /// The jitter's wrap is `fract`'s, bit for bit, over the range of its arguments (frames up
+    /// to `u32::MAX` times a constant below 1, plus at most 1.5).
     #[test]
     fn the_jitter_wraps_as_fract() {
         let mut rng = Pcg32::new(3, 4);

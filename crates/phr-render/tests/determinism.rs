@@ -385,3 +385,31 @@ fn alpha_masks_only_remove_hits() {
     }
     assert!(on_leaf > 300 && through > 300, "{on_leaf} rays on the leaf, {through} through its holes");
 }
+
+/// A renderer handed another renderer's jitter table (as the viewer's pipeline does from
+/// frame to frame) renders what a fresh one does, whatever the table's seed, and so does a
+/// renderer whose seed is changed after its table was made.
+#[test]
+fn a_handed_over_jitter_table_changes_nothing() {
+    let scene = builtin::cornell_knot();
+    let mut geometry = Geometry::new(&scene);
+    geometry.build(&Builder::default());
+    let view = scene.view(None).expect("default view");
+    let settings = RenderSettings { width: WIDTH, height: HEIGHT, spp: 1, max_depth: MAX_DEPTH };
+    let fresh = |seed: u64| Renderer::new(&scene, &geometry, &view, &settings, None).with_seed(seed);
+    let expected = bits(&fresh(2).render_frame(3).0);
+    // A table for seed 1 handed to a seed-2 renderer is not used.
+    let other = fresh(1).jitter_table();
+    assert_eq!(bits(&fresh(2).with_jitter(Some(other.clone())).render_frame(3).0), expected);
+    // Nor is it when the seed changes afterwards, by `with_seed` or by the public field.
+    let reseeded = Renderer::new(&scene, &geometry, &view, &settings, None).with_jitter(Some(other)).with_seed(2);
+    assert_eq!(bits(&reseeded.render_frame(3).0), expected);
+    let mut changed = fresh(1);
+    let _ = changed.render_frame(0);
+    changed.seed = 2;
+    assert_eq!(bits(&changed.render_frame(3).0), expected);
+    // A fitting table is used, and gives the same image.
+    let table = fresh(2).jitter_table();
+    assert_eq!(bits(&fresh(2).with_jitter(Some(table)).render_frame(3).0), expected);
+    assert_ne!(bits(&fresh(1).render_frame(3).0), expected, "the seed changes the image");
+}

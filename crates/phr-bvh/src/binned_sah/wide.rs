@@ -306,7 +306,7 @@ impl WideCtx {
                 let k = self.slots(refs, item, &mut slots, &mut splits, known, &mut bins);
                 (self.node(refs, &slots[..k], prims, |i, _| children.push((slots[i], splits[i]))), k)
             },
-            // The first slot's subtree is built first.
+            // The first slot made (not node slot 0: see `slots_by_size`) is built first.
             |pushed| pushed.reverse(),
         )
     }

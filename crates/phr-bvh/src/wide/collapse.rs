@@ -374,7 +374,8 @@ impl Emit<'_> {
                 });
                 (node, k)
             },
-            // The first interior slot is collapsed next.
+            // The first interior slot made (not node slot 0: see `slots_by_size`) is collapsed
+            // next.
             |pushed| pushed.reverse(),
         )
     }
