@@ -37,6 +37,9 @@ impl Ray {
 #[inline]
 pub fn safe_recip(d: Vec3) -> Vec3 {
     const TINY: f32 = 1.0e-30;
-    let tiny = Vec3::splat(TINY).copysign(d);
-    Vec3::select(d.abs().cmplt(Vec3::splat(TINY)), tiny, d).recip()
+    // In `Vec3A` (SIMD lanes where the target has them): one division instruction instead
+    // of three, the same quotients.
+    let d = glam::Vec3A::from(d);
+    let tiny = glam::Vec3A::splat(TINY).copysign(d);
+    Vec3::from(glam::Vec3A::select(d.abs().cmplt(glam::Vec3A::splat(TINY)), tiny, d).recip())
 }

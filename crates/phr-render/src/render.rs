@@ -218,7 +218,7 @@ impl Renderer<'_> {
         let mut paths = Vec::with_capacity((TILE * TILE) as usize);
         for y in y0..(y0 + TILE).min(self.height) {
             for x in x0..(x0 + TILE).min(self.width) {
-                let (ray, rng) = self.camera_sample(frame, y * self.width + x);
+                let (ray, rng) = self.camera_sample_at(frame, x, y);
                 paths.push((Path::new(ray), rng, FirstHit::SKY));
             }
         }
@@ -329,7 +329,13 @@ impl Renderer<'_> {
     /// of its path: they depend on (seed, frame, pixel) alone.
     #[inline]
     fn camera_sample(&self, frame: u32, pixel: u32) -> (phr_bvh::Ray, Pcg32) {
-        let (x, y) = (pixel % self.width, pixel / self.width);
+        self.camera_sample_at(frame, pixel % self.width, pixel / self.width)
+    }
+
+    /// [`Renderer::camera_sample`] of the pixel in column `x` of row `y` (no division).
+    #[inline]
+    fn camera_sample_at(&self, frame: u32, x: u32, y: u32) -> (phr_bvh::Ray, Pcg32) {
+        let pixel = y * self.width + x;
         let rng = Pcg32::for_pixel(self.seed, frame, pixel);
         let (jx, jy) = self.pixel_jitter(frame, pixel);
         (self.camera.ray(x as f32 + jx, y as f32 + jy), rng)
