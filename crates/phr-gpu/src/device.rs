@@ -38,6 +38,10 @@ pub struct Gpu {
     failure: std::sync::Arc<std::sync::Mutex<Option<String>>>,
 }
 
+/// The smallest storage buffer made: one element of the largest array element the kernels
+/// read, a wide BVH node (`GpuNode`).
+const MIN_STORAGE: usize = 256;
+
 impl Gpu {
     /// The most capable adapter there is (a discrete GPU over an integrated one over a software
     /// one); `WGPU_BACKEND` and `WGPU_ADAPTER_NAME` choose another, as in every wgpu program.
@@ -102,9 +106,8 @@ impl Gpu {
         self.info.device_type == wgpu::DeviceType::Cpu
     }
 
-    /// A storage buffer holding `data` (zeros after it up to 64 bytes: a binding must hold one
-    /// element of its array at least),
-    /// refused if one binding cannot see it all.
+    /// A storage buffer holding `data` (zeros after it up to [`MIN_STORAGE`] bytes: a binding
+    /// must hold one element of its array at least), refused if one binding cannot see it all.
     pub(crate) fn storage(
         &self,
         label: &str,
@@ -120,9 +123,9 @@ impl Gpu {
             )));
         }
         let mut padded;
-        let contents = if data.len() < 64 {
+        let contents = if data.len() < MIN_STORAGE {
             padded = data.to_vec();
-            padded.resize(64, 0);
+            padded.resize(MIN_STORAGE, 0);
             &padded[..]
         } else {
             data

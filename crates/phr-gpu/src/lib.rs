@@ -6,8 +6,9 @@
 //! the tests run everywhere.
 //!
 //! It traces what the CPU traces: [`scene::GpuScene`] uploads the triangles, spheres and
-//! materials of a [`phr_render::geometry::Geometry`] and the binary BVH any of `phr-bvh`'s
-//! builders made for it, with the primitives in leaf order, and the emitters of a light set.
+//! materials of a [`phr_render::geometry::Geometry`] and the 8-wide BVH its CPU queries trace
+//! (any of `phr-bvh`'s builders, collapsed or built straight into that layout), with the
+//! primitives in leaf order, and the emitters of a light set.
 //! [`trace::GpuTracer`] runs the estimators of `phr_render::integrator` (the thesis's implicit
 //! lights, or light sampling with MIS and Russian roulette) one sample per pixel per frame,
 //! accumulating on the GPU, with the CPU's random numbers per pixel drawn in the CPU's order,
@@ -17,7 +18,7 @@
 //!
 //! Colour textures, alpha masks and environment maps are looked up and sampled as on the CPU.
 //! Not yet on the GPU (each refused with a clear error, never drawn wrong): meshes placed by
-//! instances (front ends flatten them), trees other than binary ones, the denoiser.
+//! instances (front ends flatten them), the denoiser.
 
 pub mod device;
 pub mod frames;

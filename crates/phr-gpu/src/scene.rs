@@ -1,20 +1,20 @@
-//! The scene on the GPU: the binary BVH's nodes, the primitives in leaf order (so a leaf is a
-//! run of consecutive records, one 48-byte load each), the materials and, for light sampling,
-//! the emitters of a [`LightSet`], as storage buffers (`shaders/common.wgsl` and
-//! `shaders/path.wgsl` read them).
+//! The scene on the GPU: the CPU's own 8-wide BVH (the tree its renderer traces), the
+//! primitives in that tree's leaf order (so a leaf is a run of consecutive records, one 48-byte
+//! load each), the materials and, for light sampling, the emitters of a [`LightSet`], as
+//! storage buffers (`shaders/common.wgsl` and `shaders/path.wgsl` read them).
 
 use crate::device::{Binding, Gpu, GpuError};
 use bytemuck::{Pod, Zeroable};
-use phr_bvh::{tree_stats, Bvh};
-use phr_render::geometry::Geometry;
+use phr_bvh::wide::{WideBvh, PAD};
+use phr_render::geometry::{Geometry, WIDTH};
 use phr_render::lights::LightSet;
 use phr_render::material::Material;
 use phr_render::scene::{Background, Scene};
 use rayon::prelude::*;
 
-/// The kernels' traversal stack (`STACK` in `shaders/common.wgsl`): a binary tree deeper than
-/// this is refused.
-pub const STACK: usize = 64;
+/// The kernels' traversal stack (`STACK` in `shaders/common.wgsl`): a tree whose stack bound
+/// (plus one node's children) exceeds it is refused.
+pub const STACK: usize = 128;
 
 /// The WGSL every kernel starts with.
 pub(crate) const COMMON_WGSL: &str = include_str!("shaders/common.wgsl");
@@ -25,12 +25,21 @@ const SPHERE: u32 = 1 << 31;
 /// (`MASKED` in the shader).
 const MASKED: u32 = 1 << 30;
 
-/// A node as the shader reads it: box, with `first` and `count` in the fourth lanes.
+/// The count of an empty child slot (`EMPTY_SLOT` in the shader; the CPU marks one by an
+/// inverted box instead, whose infinities the shader is spared).
+pub const EMPTY_SLOT: u32 = u32::MAX;
+
+/// A node as the shader reads it: [`phr_bvh::wide::WideNode`]`<8>` (its boxes' rows `min_x,
+/// max_x, min_y, max_y, min_z, max_z`, one lane per child slot; each slot's child and
+/// primitive count), with empty slots marked by [`EMPTY_SLOT`] and zero boxes.
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 #[repr(C)]
 pub struct GpuNode {
-    pub lo: [f32; 4],
-    pub hi: [f32; 4],
+    pub bounds: [[f32; WIDTH]; 6],
+    /// Interior slot: the child's node index; leaf slot: its first primitive record.
+    pub child: [u32; WIDTH],
+    /// Leaf slot: its number of primitives; interior slot: 0; empty slot: [`EMPTY_SLOT`].
+    pub count: [u32; WIDTH],
 }
 
 /// A primitive (see `Prim` in the shader). `c[3]`: the bits of its emitter's number plus one
@@ -90,21 +99,23 @@ pub struct Packed {
 }
 
 impl Packed {
-    /// Lays out `geometry` (its primitives and the binary tree of [`Geometry::bvh`]), the
-    /// materials of `scene` and, for light sampling, `lights` (made for `geometry`). Refuses
-    /// what the kernels cannot draw yet rather than drawing it wrong.
+    /// Lays out `geometry` (its primitives and the wide tree its queries trace,
+    /// [`Geometry::wide_bvh`]), the materials of `scene` and, for light sampling, `lights`
+    /// (made for `geometry`). Refuses what the kernels cannot draw yet rather than drawing it
+    /// wrong.
     pub fn new(scene: &Scene, geometry: &Geometry, lights: Option<&LightSet>) -> Result<Self, GpuError> {
-        Self::with_tree(scene, geometry, geometry.bvh(), lights)
+        Self::with_tree(scene, geometry, geometry.wide_bvh(), lights)
     }
 
-    /// [`Packed::new`] with `bvh` over `geometry`'s primitives instead of the one it holds.
+    /// [`Packed::new`] with `tree` over `geometry`'s primitives (scene numbers) instead of the
+    /// one it holds.
     pub fn with_tree(
         scene: &Scene,
         geometry: &Geometry,
-        bvh: &Bvh,
+        tree: &WideBvh<WIDTH>,
         lights: Option<&LightSet>,
     ) -> Result<Self, GpuError> {
-        let mut packed = Self::moved(scene, geometry, bvh, lights)?;
+        let mut packed = Self::moved(scene, geometry, tree, lights)?;
         packed.materials = scene
             .materials
             .iter()
@@ -129,13 +140,18 @@ impl Packed {
         Ok(packed)
     }
 
-    /// What moves when `geometry` moves and is rebuilt into `bvh`: nodes, primitives, lights
+    /// What moves when `geometry` moves and is rebuilt into `tree`: nodes, primitives, lights
     /// (the rest empty): what [`GpuScene::update`] writes, laid out without the materials,
     /// textures and environment map a moving scene keeps. Refuses what the kernels cannot
     /// trace yet.
-    pub fn moved(scene: &Scene, geometry: &Geometry, bvh: &Bvh, lights: Option<&LightSet>) -> Result<Self, GpuError> {
+    pub fn moved(
+        scene: &Scene,
+        geometry: &Geometry,
+        tree: &WideBvh<WIDTH>,
+        lights: Option<&LightSet>,
+    ) -> Result<Self, GpuError> {
         check_supported(geometry)?;
-        check_tree(bvh)?;
+        check_tree(tree)?;
         let n_tris = geometry.triangles.len();
         let masked = |material: u32| scene.material_mask.get(material as usize).is_some_and(Option::is_some);
         // Each emitter's number plus one, by primitive (empty without light sampling).
@@ -148,12 +164,16 @@ impl Packed {
             let b = if (p as usize) < n_tris { [b[0], b[1], b[2], area] } else { [b[0], 0.0, 0.0, area] };
             gpu_lights.push(GpuLight { a, b, c: [c[0], c[1], c[2], selection] });
         }
-        // A leaf's primitives are a run of `prim_indices` already: the records keep its order,
-        // and the nodes their links.
-        let prims: Vec<GpuPrim> = bvh
+        // A leaf's primitives are a run of `prim_indices` already: the records keep its order
+        // (the padding between leaves becomes records no leaf covers), and the nodes their
+        // links.
+        let prims: Vec<GpuPrim> = tree
             .prim_indices
             .par_iter()
             .map(|&p| {
+                if p == PAD {
+                    return GpuPrim::zeroed();
+                }
                 let mut record = prim_record(geometry, n_tris, p);
                 record.c[3] = f32::from_bits(emitter_of.get(p as usize).copied().unwrap_or(0));
                 if (p as usize) < n_tris && masked(geometry.triangle_material[p as usize]) {
@@ -162,20 +182,23 @@ impl Packed {
                 record
             })
             .collect();
-        let mut nodes: Vec<GpuNode> = bvh
+        let mut nodes: Vec<GpuNode> = tree
             .nodes
             .par_iter()
             .map(|node| {
-                let (lo, hi) = (node.bounds.min, node.bounds.max);
-                GpuNode {
-                    lo: [lo.x, lo.y, lo.z, f32::from_bits(node.first)],
-                    hi: [hi.x, hi.y, hi.z, f32::from_bits(node.count)],
+                let mut gpu = GpuNode { bounds: node.bounds, child: node.child, count: node.count };
+                for i in (0..WIDTH).filter(|&i| !node.is_used(i)) {
+                    for row in &mut gpu.bounds {
+                        row[i] = 0.0;
+                    }
+                    (gpu.child[i], gpu.count[i]) = (0, EMPTY_SLOT);
                 }
+                gpu
             })
             .collect();
         if nodes.is_empty() {
-            // Nothing to hit: a root leaf of no primitives.
-            nodes.push(GpuNode { lo: [0.0; 4], hi: [0.0; 4] });
+            // Nothing to hit: a root whose slots are all empty.
+            nodes.push(GpuNode { bounds: [[0.0; WIDTH]; 6], child: [0; WIDTH], count: [EMPTY_SLOT; WIDTH] });
         }
         Ok(Self {
             nodes,
@@ -264,17 +287,15 @@ fn check_supported(geometry: &Geometry) -> Result<(), GpuError> {
     Ok(())
 }
 
-/// The kernels trace binary trees no deeper than their stack.
-fn check_tree(bvh: &Bvh) -> Result<(), GpuError> {
-    if let Some(node) = bvh.nodes.iter().find(|n| !n.is_leaf() && n.child_count() != 2) {
+/// The kernels trace trees whose stack fits theirs.
+fn check_tree(tree: &WideBvh<WIDTH>) -> Result<(), GpuError> {
+    // Between node visits the stack holds at most the bound; a visit pushes all hit children
+    // before it pops the nearest.
+    let needed = tree.stack_bound() + WIDTH;
+    if needed > STACK {
         return Err(GpuError::Unsupported(format!(
-            "a tree with {}-child nodes (the GPU traces binary trees: build with branching 2)",
-            node.child_count()
+            "a tree whose traversal may need {needed} stack entries (the GPU's stack holds {STACK})"
         )));
-    }
-    let depth = tree_stats(bvh).max_depth;
-    if depth > STACK {
-        return Err(GpuError::Unsupported(format!("a tree {depth} levels deep (the GPU's stack holds {STACK})")));
     }
     Ok(())
 }

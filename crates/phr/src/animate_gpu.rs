@@ -1,7 +1,7 @@
 //! `phr animate --device gpu`: the thesis's dynamic-scene pipeline with the GPU tracing the
-//! frames. Per frame, on the CPU: pose, refit the auxiliary LBVH, rebuild with PHR, lay out
-//! the tree and the moved primitives; then upload them (timed apart, waited for) and trace one
-//! sample per pixel on the GPU. The same command with `--device cpu` runs the CPU's pipeline on
+//! frames. Per frame, on the CPU: pose, refit the auxiliary LBVH, rebuild with PHR straight to
+//! the 8-wide tree, lay out the tree and the moved primitives; then upload them (timed apart,
+//! waited for) and trace one sample per pixel on the GPU. The same command with `--device cpu` runs the CPU's pipeline on
 //! the same motion, for the comparison.
 
 use crate::animate::{prepare, AnimateArgs};
@@ -32,6 +32,7 @@ mod imp {
     use crate::animate::FRAME_DT;
     use anyhow::Context;
     use phr_bvh::dynamic::DynamicBvh;
+    use phr_bvh::wide::WideBvh;
     use phr_bvh::Builder;
     use phr_gpu::scene::Packed;
     use phr_gpu::{Gpu, GpuScene, GpuTracer};
@@ -64,10 +65,12 @@ mod imp {
         let mut geometry = Geometry::new(&scene);
         let mut animator = Animator::new(&scene);
         let mut dynamic = DynamicBvh::new(&geometry.boxes, options);
-        let (bvh, _) = dynamic.update(&geometry.boxes);
+        // PHR straight to the 8-wide tree the GPU traces (its memory reused frame to frame).
+        let mut tree = WideBvh::default();
+        dynamic.update_wide(&geometry.boxes, &mut tree);
         let mut uploaded = GpuScene::upload_packed(
             &gpu,
-            &Packed::with_tree(&scene, &geometry, &bvh, None)?,
+            &Packed::with_tree(&scene, &geometry, &tree, None)?,
             scene.background.clone(),
         )?;
         let (w, h) = (args.width, args.height);
@@ -81,9 +84,9 @@ mod imp {
             // The CPU's pipeline advances the clock before it poses: frame k shows (k + 1) dt.
             animator.pose(&mut geometry, (frame + 1) as f32 * FRAME_DT);
             let pose = ms(start);
-            let (bvh, timings) = dynamic.update(&geometry.boxes);
+            let timings = dynamic.update_wide(&geometry.boxes, &mut tree);
             let pack_start = Instant::now();
-            let packed = Packed::moved(&scene, &geometry, &bvh, None)?;
+            let packed = Packed::moved(&scene, &geometry, &tree, None)?;
             let pack = ms(pack_start);
             let upload_start = Instant::now();
             uploaded.update(&gpu, &packed)?;

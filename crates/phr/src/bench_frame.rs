@@ -29,7 +29,8 @@ pub struct FrameSweep {
     #[arg(long, default_value_t = 2)]
     pub warmup: usize,
     /// BVH builder of our renderer (default: the SBVH, as Mitsuba 3 gets Embree's spatial-split
-    /// build; the frames are of a still view, built once; binary, the GPU's layout).
+    /// build; the frames are of a still view, built once; collapsed into the 8-wide tree both
+    /// devices trace).
     #[arg(long, default_value = "sbvh")]
     pub builder: Builder,
 }

@@ -1,8 +1,8 @@
 //! `phr render --device gpu`: the render on the GPU (`crates/phr-gpu`), in a `phr` built with
-//! the cargo feature `gpu`. The CPU builds the tree, the GPU traces and accumulates the
-//! frames; then the CPU render's last step (`render::finish`): the denoiser, whose guide and
-//! few extra samples the CPU traces (the GPU's samples are the CPU's, so they mix), and the
-//! output files.
+//! the cargo feature `gpu`. The CPU builds the tree (any builder, collapsed into the 8-wide
+//! tree its own renderer traces), the GPU traces and accumulates the frames; then the CPU
+//! render's last step (`render::finish`): the denoiser, whose guide and few extra samples the
+//! CPU traces (the GPU's samples are the CPU's, so they mix), and the output files.
 
 use crate::render::{prepare, RenderArgs};
 use anyhow::{bail, Result};
@@ -12,9 +12,6 @@ use phr_render::scene::{RenderSettings, Scene};
 pub fn run(args: &RenderArgs) -> Result<()> {
     if args.heatmap.is_some() {
         bail!("--device gpu: the heatmap counts the CPU's traversal steps; render it with --device cpu");
-    }
-    if args.branching != 2 {
-        bail!("--device gpu traces binary trees: leave --branching at 2");
     }
     let (scene, view, settings) = prepare(args)?;
     imp::run(args, scene, &view, &settings)

@@ -1,5 +1,5 @@
 // What every kernel shares: 64-bit integers (WGSL has none) for the CPU's random numbers,
-// the scene's buffers, and the closest-hit traversal of the binary BVH.
+// the scene's buffers, and the closest-hit traversal of the CPU's 8-wide BVH.
 //
 // The primitive tests are those of `phr_bvh::triangle::intersect_triangle_edges` and
 // `phr_bvh::sphere::Sphere::intersect`, the box test that of `phr_bvh::Aabb::intersect`, and
@@ -96,12 +96,14 @@ fn in_unit_sphere(rng: ptr<function, Pcg>) -> vec3<f32> {
 
 // ---- The scene ---------------------------------------------------------------------------
 
-// A BVH node (`GpuNode`): its box, `phr_bvh::Node::first` and `count`.
+// A node of the 8-wide BVH (`GpuNode`, the CPU's `phr_bvh::wide::WideNode<8>`): its
+// children's boxes as rows min_x, max_x, min_y, max_y, min_z, max_z of 8 lanes, row `r`'s
+// lanes 4h..4h + 3 at `bounds[2r + h]`; per slot the child (interior: its node; leaf: its
+// first primitive record) and the primitive count (interior: 0; empty slot: EMPTY_SLOT).
 struct Node {
-    lo: vec3<f32>,
-    first: u32,
-    hi: vec3<f32>,
-    count: u32,
+    bounds: array<vec4<f32>, 12>,
+    child: array<vec4<u32>, 2>,
+    count: array<vec4<u32>, 2>,
 }
 
 // A primitive in leaf order (`GpuPrim`). Triangle: `a` = v0, `b` = e1, `c` = e2. Sphere: `a`
@@ -117,13 +119,13 @@ struct Prim {
     emitter: u32,
 }
 
-const INTERIOR: u32 = 0x80000000u;
+const EMPTY_SLOT: u32 = 0xffffffffu;
 const SPHERE: u32 = 0x80000000u;
 // A triangle whose material has an alpha mask to test.
 const MASKED: u32 = 0x40000000u;
 const NO_TEXTURE: u32 = 0xffffffffu;
 const NO_HIT: u32 = 0xffffffffu;
-const STACK: u32 = 64u;
+const STACK: u32 = 128u;
 const EPSILON: f32 = 1.1920929e-7;
 const EDGE_TOLERANCE: f32 = 8.0 * EPSILON;
 const MAX_EDGE_SLACK: f32 = 1.0e-5;
@@ -290,15 +292,29 @@ fn make_ray(origin: vec3<f32>, dir: vec3<f32>, tmin: f32, tmax: f32) -> Ray {
     return Ray(origin, dir, 1.0 / safe, tmin, tmax);
 }
 
-// Entry distance into a node's box, or F32_MAX.
-fn box_entry(node: Node, ray: Ray) -> f32 {
-    let t0 = (node.lo - ray.origin) * ray.inv_dir;
-    let t1 = (node.hi - ray.origin) * ray.inv_dir;
-    let near = min(t0, t1);
-    let far = max(t0, t1);
-    let tnear = max(max(near.x, near.y), max(near.z, ray.tmin));
-    let tfar = min(min(far.x, far.y), min(far.z, ray.tmax)) * ROBUST_SLAB;
-    return select(F32_MAX, tnear, tnear <= tfar);
+// Entry distances into four child boxes (rows min_x, max_x, .., max_z of four lanes; their
+// slots' counts), F32_MAX for those missed and for empty slots: per lane the robust slab test
+// of `phr_bvh::wide::simd` (min and max of the two planes give its near and far plane).
+fn children_entry(
+    x0: vec4<f32>,
+    x1: vec4<f32>,
+    y0: vec4<f32>,
+    y1: vec4<f32>,
+    z0: vec4<f32>,
+    z1: vec4<f32>,
+    counts: vec4<u32>,
+    ray: Ray,
+) -> vec4<f32> {
+    let tx0 = (x0 - ray.origin.x) * ray.inv_dir.x;
+    let tx1 = (x1 - ray.origin.x) * ray.inv_dir.x;
+    let ty0 = (y0 - ray.origin.y) * ray.inv_dir.y;
+    let ty1 = (y1 - ray.origin.y) * ray.inv_dir.y;
+    let tz0 = (z0 - ray.origin.z) * ray.inv_dir.z;
+    let tz1 = (z1 - ray.origin.z) * ray.inv_dir.z;
+    let tnear = max(max(min(tx0, tx1), min(ty0, ty1)), max(min(tz0, tz1), vec4<f32>(ray.tmin)));
+    let tfar = min(min(max(tx0, tx1), max(ty0, ty1)), min(max(tz0, tz1), vec4<f32>(ray.tmax))) * ROBUST_SLAB;
+    let hit = (tnear <= tfar) & (counts != vec4<u32>(EMPTY_SLOT));
+    return select(vec4<f32>(F32_MAX), tnear, hit);
 }
 
 struct Hit {
@@ -405,64 +421,103 @@ fn any_hit(ray: Ray) -> bool {
     return traverse(ray, true).slot != NO_HIT;
 }
 
-// The closest hit of `ray0`, or with `stop_at_first` the first found: near child first, the far one on
-// a stack with its entry distance, skipped once a closer hit is known.
+// The traversal stack: per entry a child (node index or first primitive record), its
+// primitive count (0: a node) and its entry distance. Per invocation (module scope, so that
+// `consider` reaches it without pointers).
+var<private> stack_child: array<u32, STACK>;
+var<private> stack_count: array<u32, STACK>;
+var<private> stack_t: array<f32, STACK>;
+var<private> sp: u32;
+// The nearest hit child of the node being visited (near_t = F32_MAX: none yet).
+var<private> near_t: f32;
+var<private> near_child: u32;
+var<private> near_count: u32;
+
+fn push(t: f32, child: u32, count: u32) {
+    stack_child[sp] = child;
+    stack_count[sp] = count;
+    stack_t[sp] = t;
+    sp++;
+}
+
+// One child of the node being visited, at entry distance `t` (F32_MAX: missed): the nearest
+// so far is kept to be visited next, the others are pushed.
+fn consider(t: f32, child: u32, count: u32) {
+    if t == F32_MAX {
+        return;
+    }
+    if t < near_t {
+        if near_t < F32_MAX {
+            push(near_t, near_child, near_count);
+        }
+        near_t = t;
+        near_child = child;
+        near_count = count;
+    } else {
+        push(t, child, count);
+    }
+}
+
+// The closest hit of `ray0`, or with `stop_at_first` the first found: the CPU's walk of the
+// wide tree. A node's nearest hit child is visited next, the others pushed with their entry
+// distances; popped entries that start beyond the closest hit so far are skipped. (The
+// pushed children are not sorted: the tie rule makes the closest hit independent of the
+// order, and sorting costs a software GPU more than it saves.)
 fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
     var ray = ray0;
     var best = Hit(F32_MAX, 0.0, 0.0, NO_HIT, NO_HIT);
-    if box_entry(node_at(0u), ray) == F32_MAX {
-        return best;
-    }
-    var stack_node: array<u32, STACK>;
-    var stack_t: array<f32, STACK>;
-    var sp = 0u;
-    var node = 0u;
+    sp = 0u;
+    // The root node.
+    var index = 0u;
+    var count = 0u;
     loop {
-        let n = node_at(node);
-        let first = n.first;
-        let count = n.count;
-        var next = NO_HIT;
-        if (count & INTERIOR) == 0u {
+        if count == 0u {
+            let n = node_at(index);
+            let lo = children_entry(
+                n.bounds[0], n.bounds[2], n.bounds[4], n.bounds[6], n.bounds[8], n.bounds[10], n.count[0], ray
+            );
+            let hi = children_entry(
+                n.bounds[1], n.bounds[3], n.bounds[5], n.bounds[7], n.bounds[9], n.bounds[11], n.count[1], ray
+            );
+            near_t = F32_MAX;
+            consider(lo.x, n.child[0].x, n.count[0].x);
+            consider(lo.y, n.child[0].y, n.count[0].y);
+            consider(lo.z, n.child[0].z, n.count[0].z);
+            consider(lo.w, n.child[0].w, n.count[0].w);
+            consider(hi.x, n.child[1].x, n.count[1].x);
+            consider(hi.y, n.child[1].y, n.count[1].y);
+            consider(hi.z, n.child[1].z, n.count[1].z);
+            consider(hi.w, n.child[1].w, n.count[1].w);
+            if near_t < F32_MAX {
+                index = near_child;
+                count = near_count;
+                continue;
+            }
+        } else {
             for (var i = 0u; i < count; i++) {
-                test_prim(first + i, &ray, &best);
+                test_prim(index + i, &ray, &best);
                 if stop_at_first && best.slot != NO_HIT {
                     return best;
                 }
             }
-        } else {
-            let d0 = box_entry(node_at(first), ray);
-            let d1 = box_entry(node_at(first + 1u), ray);
-            let hit0 = d0 < F32_MAX;
-            let hit1 = d1 < F32_MAX;
-            if hit0 && hit1 {
-                let near_first = d0 <= d1;
-                next = select(first + 1u, first, near_first);
-                stack_node[sp] = select(first, first + 1u, near_first);
-                stack_t[sp] = max(d0, d1);
-                sp++;
-            } else if hit0 {
-                next = first;
-            } else if hit1 {
-                next = first + 1u;
-            }
         }
-        if next == NO_HIT {
-            // Pop the nearest pending node that may still hold a closer hit.
-            loop {
-                if sp == 0u {
-                    break;
-                }
-                sp--;
-                if stack_t[sp] <= ray.tmax {
-                    next = stack_node[sp];
-                    break;
-                }
+        // Pop the next pending entry that may still hold a closer hit.
+        var next = false;
+        loop {
+            if sp == 0u {
+                break;
             }
-            if next == NO_HIT {
+            sp--;
+            if stack_t[sp] <= ray.tmax * ROBUST_SLAB {
+                index = stack_child[sp];
+                count = stack_count[sp];
+                next = true;
                 break;
             }
         }
-        node = next;
+        if !next {
+            break;
+        }
     }
     return best;
 }

@@ -190,9 +190,6 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
     if on_gpu && pipeline_kind != PipelineArg::Thesis {
         anyhow::bail!("--device gpu traces the thesis's pipeline (one tree over the scene): use --pipeline thesis");
     }
-    if on_gpu && args.branching != 2 {
-        anyhow::bail!("--device gpu traces binary trees: leave --branching at 2");
-    }
     let mut scene = open_scene(&args.scene)?;
     if on_gpu {
         // The GPU traces one tree over every triangle where it is.
