@@ -289,8 +289,9 @@ fn check_supported(geometry: &Geometry) -> Result<(), GpuError> {
 
 /// The kernels trace trees whose stack fits theirs.
 fn check_tree(tree: &WideBvh<WIDTH>) -> Result<(), GpuError> {
-    // Between node visits the stack holds at most the bound; a visit pushes all hit children
-    // before it pops the nearest.
+    // The kernels push what the CPU's traversal pushes (a node's hit children but the
+    // nearest), so the stack holds at most the bound; one node's children more are kept as
+    // a margin.
     let needed = tree.stack_bound() + WIDTH;
     if needed > STACK {
         return Err(GpuError::Unsupported(format!(

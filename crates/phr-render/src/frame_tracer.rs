@@ -14,7 +14,7 @@ use glam::Vec3;
 pub struct FrameJob<'a> {
     /// Materials, textures and background.
     pub scene: &'a Scene,
-    /// The primitives as posed, and their binary tree ([`Geometry::bvh`]) over the whole scene.
+    /// The primitives as posed, and their wide tree ([`Geometry::wide_bvh`]) over the whole scene.
     pub geometry: &'a Geometry,
     /// The light set to sample (made for `geometry`); `None`: the implicit estimator.
     pub lights: Option<&'a LightSet>,

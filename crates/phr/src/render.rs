@@ -86,8 +86,7 @@ pub struct RenderArgs {
     pub tracing: Tracing,
     /// Where to trace: `cpu`, or `gpu` (the WGSL path tracer of crates/phr-gpu on any Vulkan,
     /// Metal or DX12 adapter, Mesa's lavapipe included; build with `--features gpu`). The GPU
-    /// traces the builder's binary tree with either estimator; the denoiser then runs on the
-    /// CPU.
+    /// traces the CPU's 8-wide tree with either estimator; the denoiser then runs on the CPU.
     #[arg(long, value_enum, default_value = "cpu")]
     pub device: Device,
 }

@@ -47,8 +47,9 @@ mod imp {
         // The GPU traces one tree over every triangle where it is.
         scene.flatten_instanced();
         let mut geometry = Geometry::new(&scene);
-        let report = geometry.build_report(&args.builder);
-        let build = describe_build(&args.builder, &report);
+        let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;
+        let report = geometry.build_report(&builder);
+        let build = describe_build(&builder, &report);
         geometry.set_bvh(report.bvh);
 
         let start = Instant::now();

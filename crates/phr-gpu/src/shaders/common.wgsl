@@ -428,10 +428,14 @@ var<private> stack_child: array<u32, STACK>;
 var<private> stack_count: array<u32, STACK>;
 var<private> stack_t: array<f32, STACK>;
 var<private> sp: u32;
-// The nearest hit child of the node being visited (near_t = F32_MAX: none yet).
+// The nearest and the second nearest hit child of the node being visited (F32_MAX: none
+// yet).
 var<private> near_t: f32;
 var<private> near_child: u32;
 var<private> near_count: u32;
+var<private> second_t: f32;
+var<private> second_child: u32;
+var<private> second_count: u32;
 
 fn push(t: f32, child: u32, count: u32) {
     stack_child[sp] = child;
@@ -441,28 +445,38 @@ fn push(t: f32, child: u32, count: u32) {
 }
 
 // One child of the node being visited, at entry distance `t` (F32_MAX: missed): the nearest
-// so far is kept to be visited next, the others are pushed.
+// and the second nearest so far are kept, the others pushed.
 fn consider(t: f32, child: u32, count: u32) {
     if t == F32_MAX {
         return;
     }
-    if t < near_t {
-        if near_t < F32_MAX {
-            push(near_t, near_child, near_count);
+    if t < second_t {
+        if second_t < F32_MAX {
+            push(second_t, second_child, second_count);
         }
-        near_t = t;
-        near_child = child;
-        near_count = count;
+        if t < near_t {
+            second_t = near_t;
+            second_child = near_child;
+            second_count = near_count;
+            near_t = t;
+            near_child = child;
+            near_count = count;
+        } else {
+            second_t = t;
+            second_child = child;
+            second_count = count;
+        }
     } else {
         push(t, child, count);
     }
 }
 
 // The closest hit of `ray0`, or with `stop_at_first` the first found: the CPU's walk of the
-// wide tree. A node's nearest hit child is visited next, the others pushed with their entry
-// distances; popped entries that start beyond the closest hit so far are skipped. (The
-// pushed children are not sorted: the tie rule makes the closest hit independent of the
-// order, and sorting costs a software GPU more than it saves.)
+// wide tree. A node's nearest hit child is visited next and its second nearest pushed last
+// (popped next), the others pushed before it unsorted, all with their entry distances;
+// popped entries that start beyond the closest hit so far are skipped. (The tie rule makes
+// the closest hit independent of the order; a full sort, as the CPU's, cost lavapipe more
+// than it saved.)
 fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
     var ray = ray0;
     var best = Hit(F32_MAX, 0.0, 0.0, NO_HIT, NO_HIT);
@@ -480,6 +494,7 @@ fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
                 n.bounds[1], n.bounds[3], n.bounds[5], n.bounds[7], n.bounds[9], n.bounds[11], n.count[1], ray
             );
             near_t = F32_MAX;
+            second_t = F32_MAX;
             consider(lo.x, n.child[0].x, n.count[0].x);
             consider(lo.y, n.child[0].y, n.count[0].y);
             consider(lo.z, n.child[0].z, n.count[0].z);
@@ -488,6 +503,10 @@ fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
             consider(hi.y, n.child[1].y, n.count[1].y);
             consider(hi.z, n.child[1].z, n.count[1].z);
             consider(hi.w, n.child[1].w, n.count[1].w);
+            // The second nearest on top, to be popped first once the nearest is done.
+            if second_t < F32_MAX {
+                push(second_t, second_child, second_count);
+            }
             if near_t < F32_MAX {
                 index = near_child;
                 count = near_count;
@@ -508,7 +527,9 @@ fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
                 break;
             }
             sp--;
-            if stack_t[sp] <= ray.tmax * ROBUST_SLAB {
+            // (An open ray's `tmax` is F32_MAX, whose product would overflow: every entry is
+            // nearer.)
+            if ray.tmax >= F32_MAX || stack_t[sp] <= ray.tmax * ROBUST_SLAB {
                 index = stack_child[sp];
                 count = stack_count[sp];
                 next = true;

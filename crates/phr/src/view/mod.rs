@@ -83,7 +83,7 @@ pub struct ViewArgs {
     #[arg(long, value_enum, default_value = "atrous")]
     denoiser: Denoiser,
     /// `gpu` (a `phr` built with `--features gpu`): the GPU traces the colour frames, with the
-    /// thesis's pipeline (one binary tree over the scene; instances are flattened); the CPU
+    /// thesis's pipeline (one tree over the scene; instances are flattened); the CPU
     /// poses, builds the trees, accumulates and denoises, and traces the other modes.
     #[arg(long, value_enum, default_value = "cpu")]
     device: Device,
