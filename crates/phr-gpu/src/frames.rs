@@ -46,7 +46,7 @@ impl GpuFrames {
             }
             (Some(scene), Some((_, with_lights))) if with_lights == lights => {
                 let g = job.geometry;
-                scene.update(&self.gpu, &Packed::moved(job.scene, g, g.wide_bvh(), job.lights)?)?;
+                scene.update(&self.gpu, &Packed::moved_geometry(job.scene, g, job.lights)?)?;
             }
             _ => {
                 let packed = Packed::new(job.scene, job.geometry, job.lights)?;

@@ -5,7 +5,9 @@
 
 use crate::device::{Binding, Gpu, GpuError};
 use bytemuck::{Pod, Zeroable};
+use phr_bvh::instance::Instance;
 use phr_bvh::wide::{WideBvh, PAD};
+use phr_bvh::Aabb;
 use phr_render::geometry::{Geometry, WIDTH};
 use phr_render::lights::LightSet;
 use phr_render::material::Material;
@@ -42,6 +44,51 @@ pub struct GpuNode {
     pub count: [u32; WIDTH],
 }
 
+/// A part of a two-level scene (see `Instance` in the shader): where its tree starts and how
+/// it is placed in the world, the matrices by columns as glam holds them, so that the shader
+/// transforms rays, points and normals with the CPU's operations in the CPU's order.
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct GpuInstance {
+    /// World to object space: the linear part's columns, then the translation (`w` unused).
+    pub to_object: [[f32; 4]; 4],
+    /// Object to world space, the same way.
+    pub to_world: [[f32; 4]; 4],
+    /// Normals into the world: the columns of the transpose of `to_object`'s linear part.
+    pub normal: [[f32; 4]; 3],
+    /// The part's box in the world; `lo[3]`: the bits of its root node's index; `hi[3]`: the
+    /// bits of its flags ([`INSTANCE_IDENTITY`], [`INSTANCE_MIRRORS`], [`INSTANCE_EMPTY`]).
+    pub lo: [f32; 4],
+    pub hi: [f32; 4],
+}
+
+/// Flags of a [`GpuInstance`] (the same in the shader): rays pass unchanged; the transform
+/// mirrors (a triangle's normal turns around); the part holds nothing to hit.
+pub const INSTANCE_IDENTITY: u32 = 1;
+pub const INSTANCE_MIRRORS: u32 = 2;
+pub const INSTANCE_EMPTY: u32 = 4;
+
+impl GpuInstance {
+    fn new(instance: &Instance, world: Aabb, root: u32) -> Self {
+        let column = |v: glam::Vec3A| [v.x, v.y, v.z, 0.0];
+        let affine = |a: &glam::Affine3A| {
+            [column(a.matrix3.x_axis), column(a.matrix3.y_axis), column(a.matrix3.z_axis), column(a.translation)]
+        };
+        let normal = instance.to_object.matrix3.transpose();
+        let flags = if instance.is_identity() { INSTANCE_IDENTITY } else { 0 }
+            | if instance.mirrors() { INSTANCE_MIRRORS } else { 0 }
+            | if world.is_empty() { INSTANCE_EMPTY } else { 0 };
+        let (lo, hi) = if world.is_empty() { (glam::Vec3::ZERO, glam::Vec3::ZERO) } else { (world.min, world.max) };
+        Self {
+            to_object: affine(&instance.to_object),
+            to_world: affine(&instance.to_world),
+            normal: [column(normal.x_axis), column(normal.y_axis), column(normal.z_axis)],
+            lo: [lo.x, lo.y, lo.z, f32::from_bits(root)],
+            hi: [hi.x, hi.y, hi.z, f32::from_bits(flags)],
+        }
+    }
+}
+
 /// A primitive (see `Prim` in the shader). `c[3]`: the bits of its emitter's number plus one
 /// (0: not a light to sample).
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
@@ -76,6 +123,9 @@ pub struct GpuLight {
 pub struct Packed {
     pub nodes: Vec<GpuNode>,
     pub prims: Vec<GpuPrim>,
+    /// The parts of a two-level scene, each with its tree among `nodes` and its primitives
+    /// among `prims` (empty: one tree over the scene, rooted at node 0).
+    pub instances: Vec<GpuInstance>,
     pub materials: Vec<GpuMaterial>,
     /// The emitters of the light set, and its cumulative selection weights (both empty
     /// without light sampling).
@@ -104,7 +154,21 @@ impl Packed {
     /// (made for `geometry`). Refuses what the kernels cannot draw yet rather than drawing it
     /// wrong.
     pub fn new(scene: &Scene, geometry: &Geometry, lights: Option<&LightSet>) -> Result<Self, GpuError> {
-        Self::with_tree(scene, geometry, geometry.wide_bvh(), lights)
+        let mut packed = Self::moved_geometry(scene, geometry, lights)?;
+        packed.add_materials(scene, geometry);
+        Ok(packed)
+    }
+
+    /// What moves when `geometry` moves ([`Packed::moved`]), with its own trees: the wide
+    /// tree over the scene, or each part's under its instance.
+    pub fn moved_geometry(scene: &Scene, geometry: &Geometry, lights: Option<&LightSet>) -> Result<Self, GpuError> {
+        if geometry.part_count() <= 1 {
+            return Self::moved(scene, geometry, geometry.wide_bvh(), lights);
+        }
+        let parts: Vec<_> = (0..geometry.part_count())
+            .map(|k| (geometry.part_wide(k), Some((geometry.part_instance(k), geometry.part_world_bounds(k)))))
+            .collect();
+        Self::lay_out(scene, geometry, &parts, lights)
     }
 
     /// [`Packed::new`] with `tree` over `geometry`'s primitives (scene numbers) instead of the
@@ -116,6 +180,13 @@ impl Packed {
         lights: Option<&LightSet>,
     ) -> Result<Self, GpuError> {
         let mut packed = Self::moved(scene, geometry, tree, lights)?;
+        packed.add_materials(scene, geometry);
+        Ok(packed)
+    }
+
+    /// The materials, textures and environment map of `scene`.
+    fn add_materials(&mut self, scene: &Scene, geometry: &Geometry) {
+        let packed = self;
         packed.materials = scene
             .materials
             .iter()
@@ -137,7 +208,6 @@ impl Packed {
             packed.environment = Some(([t.width as u32, t.height as u32], [t.rotation.0, t.rotation.1]));
             packed.environment_tables = [t.row_cdf, t.cell_cdf, t.cell_probability].concat();
         }
-        Ok(packed)
     }
 
     /// What moves when `geometry` moves and is rebuilt into `tree`: nodes, primitives, lights
@@ -150,8 +220,23 @@ impl Packed {
         tree: &WideBvh<WIDTH>,
         lights: Option<&LightSet>,
     ) -> Result<Self, GpuError> {
+        Self::lay_out(scene, geometry, &[(tree, None)], lights)
+    }
+
+    /// Lays out `trees` over `geometry`'s primitives, one after the other (node links and
+    /// leaves moved by where each tree's nodes and records begin), each with its instance and
+    /// world box if the scene has parts, and the emitters of `lights`, in the world.
+    #[allow(clippy::type_complexity)]
+    fn lay_out(
+        scene: &Scene,
+        geometry: &Geometry,
+        trees: &[(&WideBvh<WIDTH>, Option<(&Instance, Aabb)>)],
+        lights: Option<&LightSet>,
+    ) -> Result<Self, GpuError> {
         check_supported(geometry)?;
-        check_tree(tree)?;
+        for (tree, _) in trees {
+            check_tree(tree)?;
+        }
         let n_tris = geometry.triangles.len();
         let masked = |material: u32| scene.material_mask.get(material as usize).is_some_and(Option::is_some);
         // Each emitter's number plus one, by primitive (empty without light sampling).
@@ -160,17 +245,23 @@ impl Packed {
         for (k, (p, area, selection)) in lights.iter().flat_map(|l| l.emitters()).enumerate() {
             emitter_of.resize(emitter_of.len().max(p as usize + 1), 0);
             emitter_of[p as usize] = k as u32 + 1;
-            let GpuPrim { a, b, c } = prim_record(geometry, n_tris, p);
+            // Sampled where it is in the world (a part's primitives are in its object space).
+            let GpuPrim { a, b, c } = world_record(geometry, n_tris, p);
             let b = if (p as usize) < n_tris { [b[0], b[1], b[2], area] } else { [b[0], 0.0, 0.0, area] };
             gpu_lights.push(GpuLight { a, b, c: [c[0], c[1], c[2], selection] });
         }
-        // A leaf's primitives are a run of `prim_indices` already: the records keep its order
-        // (the padding between leaves becomes records no leaf covers), and the nodes their
-        // links.
-        let prims: Vec<GpuPrim> = tree
-            .prim_indices
-            .par_iter()
-            .map(|&p| {
+        let mut packed = Self {
+            lights: gpu_lights,
+            light_cdf: lights.map_or(Vec::new(), |l| l.cdf().to_vec()),
+            sky_probability: lights.map(LightSet::sky_probability),
+            ..Self::default()
+        };
+        for &(tree, placed) in trees {
+            let (node_base, record_base) = (packed.nodes.len() as u32, packed.prims.len() as u32);
+            // A leaf's primitives are a run of `prim_indices` already: the records keep its
+            // order (the padding between leaves becomes records no leaf covers), and the nodes
+            // their links.
+            packed.prims.par_extend(tree.prim_indices.par_iter().map(|&p| {
                 if p == PAD {
                     return GpuPrim::zeroed();
                 }
@@ -180,34 +271,32 @@ impl Packed {
                     record.a[3] = f32::from_bits(record.a[3].to_bits() | MASKED);
                 }
                 record
-            })
-            .collect();
-        let mut nodes: Vec<GpuNode> = tree
-            .nodes
-            .par_iter()
-            .map(|node| {
+            }));
+            packed.nodes.par_extend(tree.nodes.par_iter().map(|node| {
                 let mut gpu = GpuNode { bounds: node.bounds, child: node.child, count: node.count };
-                for i in (0..WIDTH).filter(|&i| !node.is_used(i)) {
-                    for row in &mut gpu.bounds {
-                        row[i] = 0.0;
+                for i in 0..WIDTH {
+                    if !node.is_used(i) {
+                        for row in &mut gpu.bounds {
+                            row[i] = 0.0;
+                        }
+                        (gpu.child[i], gpu.count[i]) = (0, EMPTY_SLOT);
+                    } else if node.count[i] == 0 {
+                        gpu.child[i] += node_base;
+                    } else {
+                        gpu.child[i] += record_base;
                     }
-                    (gpu.child[i], gpu.count[i]) = (0, EMPTY_SLOT);
                 }
                 gpu
-            })
-            .collect();
-        if nodes.is_empty() {
-            // Nothing to hit: a root whose slots are all empty.
-            nodes.push(GpuNode { bounds: [[0.0; WIDTH]; 6], child: [0; WIDTH], count: [EMPTY_SLOT; WIDTH] });
+            }));
+            if tree.nodes.is_empty() {
+                // Nothing to hit: a root whose slots are all empty.
+                packed.nodes.push(GpuNode { bounds: [[0.0; WIDTH]; 6], child: [0; WIDTH], count: [EMPTY_SLOT; WIDTH] });
+            }
+            if let Some((instance, world)) = placed {
+                packed.instances.push(GpuInstance::new(instance, world, node_base));
+            }
         }
-        Ok(Self {
-            nodes,
-            prims,
-            lights: gpu_lights,
-            light_cdf: lights.map_or(Vec::new(), |l| l.cdf().to_vec()),
-            sky_probability: lights.map(LightSet::sky_probability),
-            ..Self::default()
-        })
+        Ok(packed)
     }
 }
 
@@ -260,6 +349,23 @@ fn prim_record(geometry: &Geometry, n_tris: usize, p: u32) -> GpuPrim {
     }
 }
 
+/// [`prim_record`] placed in the world (the same for primitives of a part in place).
+fn world_record(geometry: &Geometry, n_tris: usize, p: u32) -> GpuPrim {
+    let mut record = prim_record(geometry, n_tris, p);
+    let i = p as usize;
+    if i < n_tris {
+        let [v0, e1, e2] = geometry.world_triangle_edges(i);
+        record.a[..3].copy_from_slice(&v0.to_array());
+        record.b[..3].copy_from_slice(&e1.to_array());
+        record.c[..3].copy_from_slice(&e2.to_array());
+    } else {
+        let s = geometry.world_sphere(i - n_tris);
+        record.a[..3].copy_from_slice(&s.center.to_array());
+        record.b[0] = s.radius;
+    }
+    record
+}
+
 fn material_record(m: &Material) -> GpuMaterial {
     let kind = |k: u32| f32::from_bits(k);
     match *m {
@@ -278,8 +384,8 @@ fn material_record(m: &Material) -> GpuMaterial {
 /// What the kernels do not trace yet.
 fn check_supported(geometry: &Geometry) -> Result<(), GpuError> {
     let unsupported = |what: String| Err(GpuError::Unsupported(what));
-    if geometry.copy_count() > 0 || geometry.part_count() > 1 {
-        return unsupported("meshes placed by instances (flatten them first)".into());
+    if geometry.copy_count() > 0 {
+        return unsupported("meshes placed many times (flatten them first)".into());
     }
     if geometry.triangles.len() != geometry.triangle_count() {
         return unsupported("the geometry's triangles were released".into());
@@ -319,7 +425,7 @@ pub struct GpuScene {
     pub bytes: u64,
 }
 
-const BUFFERS: usize = 16;
+const BUFFERS: usize = 17;
 const BUFFER_NAMES: [&str; BUFFERS] = [
     "BVH nodes",
     "primitives",
@@ -337,6 +443,7 @@ const BUFFER_NAMES: [&str; BUFFERS] = [
     "primitives (2nd binding)",
     "primitives (3rd binding)",
     "primitives (4th binding)",
+    "instances",
 ];
 /// The bindings that hold the nodes and the primitives, in order (`common.wgsl`: `node_at`
 /// and `prim_at`).
@@ -346,11 +453,13 @@ const PRIM_BINDINGS: [usize; SPLIT] = [1, 13, 14, 15];
 const SPLIT: usize = 4;
 /// The bindings of the emissive triangles and their weights.
 const LIGHT_BINDINGS: [usize; 2] = [3, 4];
+/// The binding of the parts' instances.
+const INSTANCE_BINDING: usize = 16;
 
 /// The buffers a moving scene changes ([`GpuScene::update`]): nodes, primitives, lights, light
-/// weights.
+/// weights, instances.
 fn moving() -> impl Iterator<Item = usize> {
-    NODE_BINDINGS.into_iter().chain(PRIM_BINDINGS).chain(LIGHT_BINDINGS)
+    NODE_BINDINGS.into_iter().chain(PRIM_BINDINGS).chain(LIGHT_BINDINGS).chain([INSTANCE_BINDING])
 }
 
 /// How a scene's nodes and primitives lie across their bindings: what the kernels are compiled
@@ -361,15 +470,18 @@ pub(crate) struct Split {
     prims_per_binding: usize,
     node_bindings: usize,
     prim_bindings: usize,
+    /// Parts of a two-level scene (0: one tree over the scene).
+    instances: usize,
 }
 
 impl Split {
-    pub(crate) fn constants(&self) -> [(&'static str, f64); 4] {
+    pub(crate) fn constants(&self) -> [(&'static str, f64); 5] {
         [
             ("nodes_per_binding", self.nodes_per_binding as f64),
             ("prims_per_binding", self.prims_per_binding as f64),
             ("node_bindings", self.node_bindings as f64),
             ("prim_bindings", self.prim_bindings as f64),
+            ("instance_count", self.instances as f64),
         ]
     }
 }
@@ -394,6 +506,7 @@ fn contents<'a>(gpu: &Gpu, packed: &'a Packed) -> Result<([&'a [u8]; BUFFERS], S
         &[],
         &[],
         &[],
+        bytemuck::cast_slice(&packed.instances),
     ];
     let (nodes_per_binding, prims_per_binding) = (gpu.per_binding::<GpuNode>(), gpu.per_binding::<GpuPrim>());
     let split = Split {
@@ -401,6 +514,7 @@ fn contents<'a>(gpu: &Gpu, packed: &'a Packed) -> Result<([&'a [u8]; BUFFERS], S
         prims_per_binding,
         node_bindings: split_into(&mut data, NODE_BINDINGS, &packed.nodes, nodes_per_binding, "the BVH nodes", gpu)?,
         prim_bindings: split_into(&mut data, PRIM_BINDINGS, &packed.prims, prims_per_binding, "the primitives", gpu)?,
+        instances: packed.instances.len(),
     };
     Ok((data, split))
 }

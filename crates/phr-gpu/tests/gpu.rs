@@ -191,6 +191,42 @@ fn closest_hits_equal_the_cpu() {
     }
 }
 
+/// `scene`'s primitives cut into three parts by number, two of them moved by transforms: a
+/// rotation with a non-uniform scale, and a mirror.
+fn in_three_parts(scene: &Scene) -> Geometry {
+    use glam::{Affine3A, Quat};
+    let mut geometry = Geometry::new(scene);
+    let n = geometry.prim_count() as u32;
+    geometry
+        .split(vec![(0..n / 3).collect(), (n / 3..2 * n / 3).collect(), (2 * n / 3..n).collect()], &Builder::default());
+    let turned = Affine3A::from_scale_rotation_translation(
+        Vec3::new(1.1, 0.8, 1.0),
+        Quat::from_rotation_y(0.6),
+        Vec3::new(0.05, 0.02, -0.04),
+    );
+    let mirrored =
+        Affine3A::from_translation(Vec3::new(0.02, 0.0, 0.0)) * Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0));
+    geometry.place(&[(1, turned), (2, mirrored)]);
+    assert_eq!(geometry.part_count(), 3);
+    geometry
+}
+
+/// Through the parts' instances ([`in_three_parts`]), the GPU's closest hits are the CPU's, on
+/// triangles and spheres alike.
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn closest_hits_through_instances_equal_the_cpu() {
+    let gpu = gpu();
+    for name in ["cornell_glass_mirror", "bunny_sky"] {
+        let scene = reference_scene(name);
+        let geometry = in_three_parts(&scene);
+        let uploaded = GpuScene::upload(gpu, &scene, &geometry, None).unwrap();
+        let rays = probe_rays(&scene, 50_000);
+        let hits = HitQueries::new(gpu, &uploaded).closest_hits(gpu, &uploaded, &rays).unwrap();
+        assert_hits_equal(&format!("{name} in three parts, two moved"), &hits, &geometry, &rays);
+    }
+}
+
 /// The GPU's closest hits `hits` of `rays` are the CPU's ([`closest_hits_equal_the_cpu`]).
 fn assert_hits_equal(name: &str, hits: &[Option<phr_gpu::GpuHit>], geometry: &Geometry, rays: &[Ray]) {
     let (mut same, mut ties, mut found) = (0, 0, 0);
@@ -301,6 +337,33 @@ fn frames_equal_the_cpu_pixel_by_pixel() {
     }
 }
 
+/// Frames through the parts' instances ([`in_three_parts`]; the lights of `lights_mixed` among
+/// the moved primitives) are the CPU's, pixel by pixel, with either estimator: surfaces and
+/// normals placed in the world as on the CPU, mirrored triangles turned around, emitters
+/// sampled where they are.
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn frames_through_instances_equal_the_cpu() {
+    let gpu = gpu();
+    for name in ["cornell_glass_mirror", "lights_mixed"] {
+        let scene = reference_scene(name);
+        let geometry = in_three_parts(&scene);
+        for sampled in [false, true] {
+            let lights = light_set(&geometry, &scene, sampled);
+            let uploaded = GpuScene::upload(gpu, &scene, &geometry, lights.as_ref()).unwrap();
+            let view = scene.view(None).unwrap();
+            let settings = phr_render::scene::RenderSettings { width: 96, height: 80, ..scene.settings };
+            let camera = Camera::new(&view, settings.width, settings.height);
+            let cpu = Renderer::new(&scene, &geometry, &view, &settings, lights.as_ref()).with_seed(99);
+            let (w, h) = (settings.width, settings.height);
+            let mut tracer = GpuTracer::new(gpu, &uploaded, &camera, w, h, settings.max_depth, 99).unwrap();
+            tracer.render(&uploaded, 3..4);
+            let what = format!("{name} in three parts, light sampling {sampled}");
+            assert_alike(&cpu.render_frame(3).0, &tracer.film().unwrap().mean(), 100, &what);
+        }
+    }
+}
+
 /// The GPU's images of the four references of `shared/reference` and of phr-render's own
 /// (`OWN`), 256 samples per pixel, with both estimators, through the team's comparison tool: the thesis's estimator
 /// judged by the reference's noise per sample, light sampling by its own variance.
@@ -405,13 +468,20 @@ fn assert_alike(cpu: &[Vec3], gpu: &[Vec3], min_lit: usize, what: &str) {
 #[test]
 #[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
 fn the_viewers_frames_on_the_gpu_are_the_cpus() {
+    for pipeline in PipelineKind::ALL {
+        viewer_frames_alike(pipeline);
+    }
+}
+
+/// [`the_viewers_frames_on_the_gpu_are_the_cpus`] with one pipeline.
+fn viewer_frames_alike(pipeline: PipelineKind) {
     let scene_text = include_str!("../../phr-render/tests/support/moving_light.json");
     let make = || {
         let scene = parse_scene(scene_text, Path::new("moving_light.json")).unwrap();
         let camera = scene.view(None).unwrap();
         let settings = PipelineSettings {
             builder: Builder::PHR_FAST,
-            pipeline: PipelineKind::Thesis,
+            pipeline,
             width: 64,
             height: 48,
             max_depth: 4,
@@ -438,9 +508,9 @@ fn the_viewers_frames_on_the_gpu_are_the_cpus() {
             }
         }
         let (g, c) = (on_gpu.step(0.1), on_cpu.step(0.1));
-        assert_eq!(g.device, "gpu", "frame {frame}");
-        assert_eq!((g.moved, g.samples), (c.moved, c.samples), "frame {frame}");
-        assert_alike(&on_cpu.raw_image(), &on_gpu.raw_image(), 300, &format!("viewer frame {frame}"));
+        assert_eq!(g.device, "gpu", "{pipeline:?}, frame {frame}");
+        assert_eq!((g.moved, g.samples), (c.moved, c.samples), "{pipeline:?}, frame {frame}");
+        assert_alike(&on_cpu.raw_image(), &on_gpu.raw_image(), 300, &format!("{pipeline:?} viewer frame {frame}"));
     }
 }
 

@@ -14,7 +14,8 @@ use glam::Vec3;
 pub struct FrameJob<'a> {
     /// Materials, textures and background.
     pub scene: &'a Scene,
-    /// The primitives as posed, and their wide tree ([`Geometry::wide_bvh`]) over the whole scene.
+    /// The primitives as posed, and their trees: one over the scene, or one per part under its
+    /// instance.
     pub geometry: &'a Geometry,
     /// The light set to sample (made for `geometry`); `None`: the implicit estimator.
     pub lights: Option<&'a LightSet>,

@@ -17,7 +17,7 @@
 //!   its triangles, and take a new tree when the worker has one.
 //!
 //! A [`FrameTracer`] set with [`FramePipeline::with_tracer`] (the GPU) traces the colour
-//! frames of the thesis's pipeline; everything else stays on the CPU.
+//! frames; everything else stays on the CPU.
 //!
 //! [`FramePipeline::step`] does one frame and reports the time of each stage, which is what
 //! the viewer's statistics panel and the headless CSV show.
@@ -239,7 +239,7 @@ pub struct FramePipeline {
     landed_sah: f64,
     /// The scene's emitters, when explicit light sampling is on.
     lights: Option<LightSet>,
-    /// Another device tracing the colour frames of [`PipelineKind::Thesis`].
+    /// Another device tracing the colour frames.
     tracer: Option<Box<dyn FrameTracer>>,
     /// [`FrameJob::version`]: counts the changes of the geometry, its tree and the lights.
     version: u64,
@@ -329,9 +329,8 @@ impl FramePipeline {
         }
     }
 
-    /// The same pipeline with `tracer` tracing the colour frames of [`PipelineKind::Thesis`]
-    /// (the other modes and pipelines stay on the CPU). A tracer that fails is dropped, with
-    /// a warning, and the CPU traces on.
+    /// The same pipeline with `tracer` tracing the colour frames (the other modes stay on the
+    /// CPU). A tracer that fails is dropped, with a warning, and the CPU traces on.
     pub fn with_tracer(self, tracer: Box<dyn FrameTracer>) -> Self {
         Self { tracer: Some(tracer), ..self }
     }
@@ -730,9 +729,7 @@ impl FramePipeline {
         // while animating, it keeps the noise from freezing in place.
         let frame = self.frame as u32;
         let geometry = &self.geometry;
-        if let Some(tracer) =
-            self.tracer.as_mut().filter(|_| s.mode == ViewMode::Colour && s.pipeline == PipelineKind::Thesis)
-        {
+        if let Some(tracer) = self.tracer.as_mut().filter(|_| s.mode == ViewMode::Colour) {
             let job = FrameJob {
                 scene: &self.scene,
                 geometry,

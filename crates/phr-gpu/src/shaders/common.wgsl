@@ -325,6 +325,8 @@ struct Hit {
     slot: u32,
     // The primitive's number in the scene.
     prim: u32,
+    // The part it belongs to (its instance; 0 in a scene of one tree).
+    part: u32,
 }
 
 // Möller–Trumbore with the CPU's edge tolerance. Returns (t, u, v), t = F32_MAX for a miss.
@@ -407,18 +409,105 @@ fn test_prim(slot: u32, ray: ptr<function, Ray>, best: ptr<function, Hit>) {
     }
     if hit.x < (*ray).tmax || (hit.x == (*ray).tmax && ((*best).slot == NO_HIT || number < (*best).prim)) {
         (*ray).tmax = hit.x;
-        *best = Hit(hit.x, hit.y, hit.z, slot, number);
+        *best = Hit(hit.x, hit.y, hit.z, slot, number, current_part);
     }
 }
 
-// The closest hit of `ray` (slot NO_HIT: none).
+// The closest hit of `ray` (slot NO_HIT: none): through the one tree, or through every part
+// whose world box the ray meets before the closest hit so far, in the part's object space
+// (`Geometry::intersect`; with the tie rule the order of the parts does not matter).
 fn closest_hit(ray: Ray) -> Hit {
-    return traverse(ray, false);
+    var best = Hit(F32_MAX, 0.0, 0.0, NO_HIT, NO_HIT, 0u);
+    current_part = 0u;
+    if instance_count == 0u {
+        return traverse(ray, false, 0u, best);
+    }
+    var world = ray;
+    for (var k = 0u; k < instance_count; k++) {
+        let inst = instances[k];
+        if (inst.flags & INSTANCE_EMPTY) != 0u || box_entry(inst.lo, inst.hi, world) == F32_MAX {
+            continue;
+        }
+        current_part = k;
+        best = traverse(object_ray(inst, world), false, inst.root, best);
+        if best.slot != NO_HIT {
+            world.tmax = best.t;
+        }
+    }
+    return best;
 }
 
 // Whether anything lies on `ray` within (tmin, tmax]: a shadow ray's query.
 fn any_hit(ray: Ray) -> bool {
-    return traverse(ray, true).slot != NO_HIT;
+    let none = Hit(F32_MAX, 0.0, 0.0, NO_HIT, NO_HIT, 0u);
+    current_part = 0u;
+    if instance_count == 0u {
+        return traverse(ray, true, 0u, none).slot != NO_HIT;
+    }
+    for (var k = 0u; k < instance_count; k++) {
+        let inst = instances[k];
+        if (inst.flags & INSTANCE_EMPTY) != 0u || box_entry(inst.lo, inst.hi, ray) == F32_MAX {
+            continue;
+        }
+        if traverse(object_ray(inst, ray), true, inst.root, none).slot != NO_HIT {
+            return true;
+        }
+    }
+    return false;
+}
+
+// ---- Parts placed by instances (`phr_bvh::instance::Instance`) ---------------------------
+
+// A part of a two-level scene (`GpuInstance`): world to object and object to world as
+// columns (linear part, then translation), the columns of the normals' matrix (the transpose
+// of world to object's linear part), its world box, its tree's root and flags.
+struct Instance {
+    to_object: array<vec4<f32>, 4>,
+    to_world: array<vec4<f32>, 4>,
+    normal: array<vec4<f32>, 3>,
+    lo: vec3<f32>,
+    root: u32,
+    hi: vec3<f32>,
+    flags: u32,
+}
+
+const INSTANCE_IDENTITY: u32 = 1u;
+const INSTANCE_MIRRORS: u32 = 2u;
+const INSTANCE_EMPTY: u32 = 4u;
+
+@group(0) @binding(16) var<storage, read> instances: array<Instance>;
+override instance_count: u32;
+// The part the traversal is in (what `test_prim` records in a hit).
+var<private> current_part: u32;
+
+// glam's `Affine3A::transform_point3`: x·c0 + y·c1 + z·c2 + t, in that order.
+fn point_by(m: array<vec4<f32>, 4>, p: vec3<f32>) -> vec3<f32> {
+    return m[0].xyz * p.x + m[1].xyz * p.y + m[2].xyz * p.z + m[3].xyz;
+}
+
+// glam's `transform_vector3` (and a `Mat3A` times a vector): x·c0 + y·c1 + z·c2.
+fn vector_by(c0: vec3<f32>, c1: vec3<f32>, c2: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
+    return c0 * v.x + c1 * v.y + c2 * v.z;
+}
+
+// `Instance::object_ray`: the ray in the part's object space, the same interval.
+fn object_ray(inst: Instance, ray: Ray) -> Ray {
+    if (inst.flags & INSTANCE_IDENTITY) != 0u {
+        return ray;
+    }
+    let m = inst.to_object;
+    return make_ray(point_by(m, ray.origin), vector_by(m[0].xyz, m[1].xyz, m[2].xyz, ray.dir), ray.tmin, ray.tmax);
+}
+
+// Entry distance into the box lo..hi, or F32_MAX (`phr_bvh::Aabb::intersect`).
+fn box_entry(lo: vec3<f32>, hi: vec3<f32>, ray: Ray) -> f32 {
+    let t0 = (lo - ray.origin) * ray.inv_dir;
+    let t1 = (hi - ray.origin) * ray.inv_dir;
+    let near = min(t0, t1);
+    let far = max(t0, t1);
+    let tnear = max(max(near.x, near.y), max(near.z, ray.tmin));
+    let tfar = min(min(far.x, far.y), min(far.z, ray.tmax)) * ROBUST_SLAB;
+    return select(F32_MAX, tnear, tnear <= tfar);
 }
 
 // The traversal stack: per entry a child (node index or first primitive record), its
@@ -477,12 +566,11 @@ fn consider(t: f32, child: u32, count: u32) {
 // popped entries that start beyond the closest hit so far are skipped. (The tie rule makes
 // the closest hit independent of the order; a full sort, as the CPU's, cost lavapipe more
 // than it saved.)
-fn traverse(ray0: Ray, stop_at_first: bool) -> Hit {
+fn traverse(ray0: Ray, stop_at_first: bool, root: u32, best0: Hit) -> Hit {
     var ray = ray0;
-    var best = Hit(F32_MAX, 0.0, 0.0, NO_HIT, NO_HIT);
+    var best = best0;
     sp = 0u;
-    // The root node.
-    var index = 0u;
+    var index = root;
     var count = 0u;
     loop {
         if count == 0u {

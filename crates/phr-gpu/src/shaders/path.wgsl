@@ -117,9 +117,21 @@ struct Surface {
     uv: vec2<f32>,
 }
 
+// `Geometry::surface_point`: the local surface in the part's object space, then placed in the
+// world by its instance.
 fn surface_at(ray: Ray, hit: Hit) -> Surface {
     let prim = prim_at(hit.slot);
     let bits = prim.material;
+    var flags = INSTANCE_IDENTITY;
+    var inst: Instance;
+    if instance_count > 0u {
+        inst = instances[hit.part];
+        flags = inst.flags;
+    }
+    var local = ray;
+    if (flags & INSTANCE_IDENTITY) == 0u {
+        local = object_ray(inst, ray);
+    }
     var p: vec3<f32>;
     var n: vec3<f32>;
     var rel: f32;
@@ -132,10 +144,18 @@ fn surface_at(ray: Ray, hit: Hit) -> Surface {
     } else {
         let c = prim.a;
         let radius = prim.b.x;
-        let on_ray = ray.origin + ray.dir * hit.t;
+        let on_ray = local.origin + local.dir * hit.t;
         p = c + (on_ray - c) * (abs(radius) / length(on_ray - c));
         n = unit_or((p - c) / radius, vec3<f32>(0.0, 1.0, 0.0));
         rel = SPHERE_OFFSET;
+    }
+    if (flags & INSTANCE_IDENTITY) == 0u {
+        // A mirroring transform turns a triangle's e1 × e2 around; a sphere's outward normal
+        // stays outward.
+        let flip = (flags & INSTANCE_MIRRORS) != 0u && (bits & SPHERE) == 0u;
+        let m = inst.normal;
+        n = unit_or(vector_by(m[0].xyz, m[1].xyz, m[2].xyz, select(n, -n, flip)), vec3<f32>(0.0, 0.0, 1.0));
+        p = point_by(inst.to_world, p);
     }
     let front = dot(ray.dir, n) < 0.0;
     let ap = abs(p);

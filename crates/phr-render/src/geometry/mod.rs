@@ -654,6 +654,16 @@ impl Geometry {
         &self.parts[k].wide
     }
 
+    /// Where part `k` is placed in the world.
+    pub fn part_instance(&self, k: usize) -> &Instance {
+        &self.parts[k].instance
+    }
+
+    /// A box around part `k` in the world (the one rays are culled by).
+    pub fn part_world_bounds(&self, k: usize) -> Aabb {
+        self.parts[k].world_bounds()
+    }
+
     /// Takes the whole scene's tree out (after [`Geometry::split`]: the first part's), leaving
     /// one empty part: nothing is hit until the next [`Geometry::set_bvh`].
     pub fn take_bvh(&mut self) -> Bvh {

@@ -1,9 +1,9 @@
 //! `phr view --device gpu`: the GPU (`crates/phr-gpu`, in a `phr` built with the cargo
-//! feature `gpu`) traces the viewer's colour frames. The CPU still poses the scene, refits
-//! and rebuilds its tree with the thesis's pipeline, accumulates and denoises (the guide's
-//! first hits come from the same camera rays, traced on the CPU); the normal, albedo and
-//! heatmap modes, and the two-level pipelines a user may switch to in the window, stay on the
-//! CPU. Each frame's samples are read back from the GPU (a 256² frame is 1 MiB).
+//! feature `gpu`) traces the viewer's colour frames, with any pipeline: one tree over the
+//! scene, or the two-level layout's parts under their instances. The CPU still poses the
+//! scene, refits and rebuilds the trees, accumulates and denoises (the guide's first hits come
+//! from the same camera rays, traced on the CPU); the normal, albedo and heatmap modes stay on
+//! the CPU. Each frame's samples are read back from the GPU (a 256² frame is 1 MiB).
 
 use anyhow::Result;
 use phr_render::pipeline::FramePipeline;

@@ -82,9 +82,9 @@ pub struct ViewArgs {
     /// accumulated image (builds with the cargo feature `oidn`); `none`: the raw mean.
     #[arg(long, value_enum, default_value = "atrous")]
     denoiser: Denoiser,
-    /// `gpu` (a `phr` built with `--features gpu`): the GPU traces the colour frames, with the
-    /// thesis's pipeline (one tree over the scene; instances are flattened); the CPU
-    /// poses, builds the trees, accumulates and denoises, and traces the other modes.
+    /// `gpu` (a `phr` built with `--features gpu`): the GPU traces the colour frames, with any
+    /// pipeline (meshes placed many times are flattened); the CPU poses, builds the trees,
+    /// accumulates and denoises, and traces the other modes.
     #[arg(long, value_enum, default_value = "cpu")]
     device: Device,
 }
@@ -186,13 +186,10 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
         anyhow::bail!("--denoiser oidn: {}", phr_render::denoise::oidn::MISSING);
     }
     let on_gpu = args.device == Device::Gpu;
-    let pipeline_kind = args.pipeline.unwrap_or(if on_gpu { PipelineArg::Thesis } else { PipelineArg::Async });
-    if on_gpu && pipeline_kind != PipelineArg::Thesis {
-        anyhow::bail!("--device gpu traces the thesis's pipeline (one tree over the scene): use --pipeline thesis");
-    }
+    let pipeline_kind = args.pipeline.unwrap_or(PipelineArg::Async);
     let mut scene = open_scene(&args.scene)?;
     if on_gpu {
-        // The GPU traces one tree over every triangle where it is.
+        // The GPU traces parts placed by instances, not meshes placed many times.
         scene.flatten_instanced();
     }
     let camera = scene
