@@ -21,9 +21,9 @@ pub enum GpuError {
     Failed(String),
 }
 
-/// Storage buffers the path tracer's kernel binds: the scene's sixteen (its nodes and its
-/// primitives over four bindings each) and the frame's three.
-const STORAGE_BUFFERS: u32 = 19;
+/// Storage buffers the path tracer's kernel binds: the scene's seventeen (its nodes and its
+/// primitives over four bindings each, and the parts' instances) and the frame's three.
+const STORAGE_BUFFERS: u32 = 20;
 
 /// A device and its queue (a clone is another handle on the same device).
 #[derive(Clone)]

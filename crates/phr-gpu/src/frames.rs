@@ -1,8 +1,9 @@
 //! The GPU as a [`FrameTracer`]: traces the colour frames of a
 //! [`phr_render::pipeline::FramePipeline`] (the viewer and its headless mode) while the CPU
 //! poses, builds the trees, accumulates and denoises. The scene is uploaded once, and again
-//! when it moves ([`Packed::moved`]: the tree, the primitives and the lights; timed apart,
-//! waited for); each frame's samples are read back for the pipeline's film.
+//! when it moves ([`Packed::moved_geometry`]: the trees, the primitives, the instances and
+//! the lights; timed apart, waited for); each frame's samples are read back for the
+//! pipeline's film.
 
 use crate::device::{Gpu, GpuError};
 use crate::scene::{GpuScene, Packed};

@@ -162,7 +162,9 @@ impl Packed {
     /// What moves when `geometry` moves ([`Packed::moved`]), with its own trees: the wide
     /// tree over the scene, or each part's under its instance.
     pub fn moved_geometry(scene: &Scene, geometry: &Geometry, lights: Option<&LightSet>) -> Result<Self, GpuError> {
-        if geometry.part_count() <= 1 {
+        // One tree in place: no instance to pass through. (A scene split into one part, a
+        // single moving object, has its part placed by an instance like any other.)
+        if geometry.part_count() <= 1 && geometry.part_instance(0).is_identity() {
             return Self::moved(scene, geometry, geometry.wide_bvh(), lights);
         }
         let parts: Vec<_> = (0..geometry.part_count())

@@ -225,6 +225,16 @@ fn closest_hits_through_instances_equal_the_cpu() {
         let hits = HitQueries::new(gpu, &uploaded).closest_hits(gpu, &uploaded, &rays).unwrap();
         assert_hits_equal(&format!("{name} in three parts, two moved"), &hits, &geometry, &rays);
     }
+    // The whole scene one part, moved (a scene of a single moving object).
+    let scene = reference_scene("bunny_sky");
+    let mut geometry = Geometry::new(&scene);
+    geometry.split(vec![(0..geometry.prim_count() as u32).collect()], &Builder::default());
+    geometry.place(&[(0, glam::Affine3A::from_rotation_z(0.3) * glam::Affine3A::from_scale(Vec3::new(1.0, 1.3, 0.9)))]);
+    assert_eq!(geometry.part_count(), 1);
+    let uploaded = GpuScene::upload(gpu, &scene, &geometry, None).unwrap();
+    let rays = probe_rays(&scene, 20_000);
+    let hits = HitQueries::new(gpu, &uploaded).closest_hits(gpu, &uploaded, &rays).unwrap();
+    assert_hits_equal("bunny_sky as one moved part", &hits, &geometry, &rays);
 }
 
 /// The GPU's closest hits `hits` of `rays` are the CPU's ([`closest_hits_equal_the_cpu`]).
