@@ -188,8 +188,7 @@ impl Packed {
 
     /// The materials, textures and environment map of `scene`.
     fn add_materials(&mut self, scene: &Scene, geometry: &Geometry) {
-        let packed = self;
-        packed.materials = scene
+        self.materials = scene
             .materials
             .iter()
             .enumerate()
@@ -203,12 +202,12 @@ impl Packed {
                 record
             })
             .collect();
-        (packed.texels, packed.textures, packed.uvs) = texture_records(scene, geometry);
+        (self.texels, self.textures, self.uvs) = texture_records(scene, geometry);
         if let Background::Environment(map) = &scene.background {
             let t = map.tables();
-            packed.environment_texels = t.texels.iter().map(|c| [c.x, c.y, c.z, 0.0]).collect();
-            packed.environment = Some(([t.width as u32, t.height as u32], [t.rotation.0, t.rotation.1]));
-            packed.environment_tables = [t.row_cdf, t.cell_cdf, t.cell_probability].concat();
+            self.environment_texels = t.texels.iter().map(|c| [c.x, c.y, c.z, 0.0]).collect();
+            self.environment = Some(([t.width as u32, t.height as u32], [t.rotation.0, t.rotation.1]));
+            self.environment_tables = [t.row_cdf, t.cell_cdf, t.cell_probability].concat();
         }
     }
 

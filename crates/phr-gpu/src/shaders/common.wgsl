@@ -413,14 +413,25 @@ fn test_prim(slot: u32, ray: ptr<function, Ray>, best: ptr<function, Hit>) {
     }
 }
 
-// The closest hit of `ray` (slot NO_HIT: none): through the one tree, or through every part
-// whose world box the ray meets before the closest hit so far, in the part's object space
-// (`Geometry::intersect`; with the tie rule the order of the parts does not matter).
+// The closest hit of `ray` (slot NO_HIT: none).
 fn closest_hit(ray: Ray) -> Hit {
+    return search(ray, false);
+}
+
+// Whether anything lies on `ray` within (tmin, tmax]: a shadow ray's query.
+fn any_hit(ray: Ray) -> bool {
+    return search(ray, true).slot != NO_HIT;
+}
+
+// The closest hit of `ray`, or with `stop_at_first` the first found: through the one tree, or
+// through every part whose world box the ray meets before the closest hit so far, in the
+// part's object space (`Geometry::intersect`; with the tie rule the order of the parts does
+// not matter).
+fn search(ray: Ray, stop_at_first: bool) -> Hit {
     var best = Hit(F32_MAX, 0.0, 0.0, NO_HIT, NO_HIT, 0u);
     current_part = 0u;
     if instance_count == 0u {
-        return traverse(ray, false, 0u, best);
+        return traverse(ray, stop_at_first, 0u, best);
     }
     var world = ray;
     for (var k = 0u; k < instance_count; k++) {
@@ -429,31 +440,15 @@ fn closest_hit(ray: Ray) -> Hit {
             continue;
         }
         current_part = k;
-        best = traverse(object_ray(inst, world), false, inst.root, best);
+        best = traverse(object_ray(inst, world), stop_at_first, inst.root, best);
         if best.slot != NO_HIT {
+            if stop_at_first {
+                return best;
+            }
             world.tmax = best.t;
         }
     }
     return best;
-}
-
-// Whether anything lies on `ray` within (tmin, tmax]: a shadow ray's query.
-fn any_hit(ray: Ray) -> bool {
-    let none = Hit(F32_MAX, 0.0, 0.0, NO_HIT, NO_HIT, 0u);
-    current_part = 0u;
-    if instance_count == 0u {
-        return traverse(ray, true, 0u, none).slot != NO_HIT;
-    }
-    for (var k = 0u; k < instance_count; k++) {
-        let inst = instances[k];
-        if (inst.flags & INSTANCE_EMPTY) != 0u || box_entry(inst.lo, inst.hi, ray) == F32_MAX {
-            continue;
-        }
-        if traverse(object_ray(inst, ray), true, inst.root, none).slot != NO_HIT {
-            return true;
-        }
-    }
-    return false;
 }
 
 // ---- Parts placed by instances (`phr_bvh::instance::Instance`) ---------------------------
