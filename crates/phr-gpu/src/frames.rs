@@ -1,11 +1,12 @@
 //! The GPU as a [`FrameTracer`]: traces the colour frames of a
 //! [`phr_render::pipeline::FramePipeline`] (the viewer and its headless mode) while the CPU
-//! poses, builds the trees, accumulates and denoises. The scene is uploaded once, and again
-//! when it moves ([`Packed::moved_geometry`]: the trees, the primitives, the instances and
-//! the lights; timed apart, waited for); each frame's samples are read back for the
-//! pipeline's film.
+//! poses, builds the trees, accumulates and denoises. The scene is uploaded once, and what
+//! changed when it moves ([`crate::moving`]: the instances and the emitters, and the trees
+//! and primitives of the parts that changed; timed apart, waited for); each frame's samples
+//! are read back for the pipeline's film.
 
 use crate::device::{Gpu, GpuError};
+use crate::moving::Uploaded;
 use crate::scene::{GpuScene, Packed};
 use crate::trace::GpuTracer;
 use phr_render::camera::{Camera, CameraDesc};
@@ -26,8 +27,8 @@ struct TracerKey {
 pub struct GpuFrames {
     gpu: Gpu,
     scene: Option<GpuScene>,
-    /// The [`FrameJob::version`] uploaded, and whether with lights.
-    uploaded: Option<(u64, bool)>,
+    /// The [`FrameJob::version`] uploaded, whether with lights, and what is on the GPU.
+    uploaded: Option<(u64, bool, Uploaded)>,
     tracer: Option<(GpuTracer, TracerKey, CameraDesc)>,
 }
 
@@ -37,34 +38,37 @@ impl GpuFrames {
     }
 
     /// The scene of `job` on the GPU: uploaded whole the first time and when light sampling
-    /// is switched, its moving parts when the version changed (then waited for). Returns
-    /// whether it uploaded anything.
+    /// is switched, what changed when the version changed (then waited for). Returns whether
+    /// it uploaded anything.
     fn upload(&mut self, job: &FrameJob) -> Result<bool, GpuError> {
         let lights = job.lights.is_some();
-        match (&mut self.scene, self.uploaded) {
-            (Some(_), Some((version, with_lights))) if version == job.version && with_lights == lights => {
+        match (&mut self.scene, &mut self.uploaded) {
+            (Some(_), Some((version, with_lights, _))) if *version == job.version && *with_lights == lights => {
                 return Ok(false)
             }
-            (Some(scene), Some((_, with_lights))) if with_lights == lights => {
-                let g = job.geometry;
-                scene.update(&self.gpu, &Packed::moved_geometry(job.scene, g, job.lights)?)?;
+            (Some(scene), Some((version, with_lights, uploaded))) if *with_lights == lights => {
+                uploaded.update(&self.gpu, scene, job)?;
+                *version = job.version;
             }
             _ => {
                 let packed = Packed::new(job.scene, job.geometry, job.lights)?;
                 self.scene = Some(GpuScene::upload_packed(&self.gpu, &packed, job.scene.background.clone())?);
+                let changing = vec![false; job.geometry.part_count()];
+                self.uploaded = Some((job.version, lights, Uploaded::new(job, &packed, changing)));
                 // A tracer is bound to the scene it was made for.
                 self.tracer = None;
             }
         }
-        self.uploaded = Some((job.version, lights));
         self.gpu.wait()?;
         Ok(true)
     }
 
     fn trace_frame(&mut self, job: &FrameJob) -> Result<TracedFrame, GpuError> {
         let start = Instant::now();
-        let upload_ms = if self.upload(job)? { start.elapsed().as_secs_f64() * 1e3 } else { 0.0 };
+        let uploaded = self.upload(job)?;
+        let upload_ms = if uploaded { start.elapsed().as_secs_f64() * 1e3 } else { 0.0 };
         let scene = self.scene.as_ref().expect("uploaded");
+        let upload_bytes = if uploaded { scene.bytes } else { 0 };
         let key = TracerKey {
             width: job.width,
             height: job.height,
@@ -88,7 +92,7 @@ impl GpuFrames {
         let (tracer, _, _) = self.tracer.as_mut().expect("made above");
         tracer.clear();
         tracer.render(scene, job.frame..job.frame + 1);
-        Ok(TracedFrame { pixels: tracer.mean()?, rays: tracer.rays()?, upload_ms })
+        Ok(TracedFrame { pixels: tracer.mean()?, rays: tracer.rays()?, upload_ms, upload_bytes })
     }
 }
 

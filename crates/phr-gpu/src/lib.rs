@@ -23,6 +23,7 @@
 
 pub mod device;
 pub mod frames;
+mod moving;
 pub mod queries;
 pub mod scene;
 pub mod trace;

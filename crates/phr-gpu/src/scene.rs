@@ -133,6 +133,10 @@ pub struct Packed {
     pub light_cdf: Vec<f32>,
     /// Probability of sampling the sky; `None`: no light sampling (the implicit estimator).
     pub sky_probability: Option<f32>,
+    /// Where each tree lies among `nodes` and `prims` (one per part, in order).
+    pub slots: Vec<TreeSlot>,
+    /// Each primitive's emitter number plus one, as the records hold it ([`Emitters`]).
+    pub emitter_of: Vec<u32>,
     /// Every colour texture's texels (sRGB, `r | g << 8 | b << 16`), one after the other, and
     /// each texture's first texel, width and height.
     pub texels: Vec<u32>,
@@ -162,13 +166,26 @@ impl Packed {
     /// What moves when `geometry` moves ([`Packed::moved`]), with its own trees: the wide
     /// tree over the scene, or each part's under its instance.
     pub fn moved_geometry(scene: &Scene, geometry: &Geometry, lights: Option<&LightSet>) -> Result<Self, GpuError> {
+        Self::moved_parts(scene, geometry, lights, |_| false)
+    }
+
+    /// [`Packed::moved_geometry`], with room for the trees of the parts `grows` names to grow
+    /// into ([`TreeSlot`]): their next trees can be written in place ([`Packed::part_records`]).
+    pub fn moved_parts(
+        scene: &Scene,
+        geometry: &Geometry,
+        lights: Option<&LightSet>,
+        grows: impl Fn(usize) -> bool,
+    ) -> Result<Self, GpuError> {
         // One tree in place: no instance to pass through. (A scene split into one part, a
         // single moving object, has its part placed by an instance like any other.)
-        if geometry.part_count() <= 1 && geometry.part_instance(0).is_identity() {
-            return Self::moved(scene, geometry, geometry.wide_bvh(), lights);
+        if !is_instanced(geometry) {
+            return Self::lay_out(scene, geometry, &[(geometry.wide_bvh(), None, grows(0))], lights);
         }
         let parts: Vec<_> = (0..geometry.part_count())
-            .map(|k| (geometry.part_wide(k), Some((geometry.part_instance(k), geometry.part_world_bounds(k)))))
+            .map(|k| {
+                (geometry.part_wide(k), Some((geometry.part_instance(k), geometry.part_world_bounds(k))), grows(k))
+            })
             .collect();
         Self::lay_out(scene, geometry, &parts, lights)
     }
@@ -221,83 +238,181 @@ impl Packed {
         tree: &WideBvh<WIDTH>,
         lights: Option<&LightSet>,
     ) -> Result<Self, GpuError> {
-        Self::lay_out(scene, geometry, &[(tree, None)], lights)
+        Self::lay_out(scene, geometry, &[(tree, None, false)], lights)
     }
 
     /// Lays out `trees` over `geometry`'s primitives, one after the other (node links and
-    /// leaves moved by where each tree's nodes and records begin), each with its instance and
-    /// world box if the scene has parts, and the emitters of `lights`, in the world.
+    /// leaves moved by where each tree's nodes and records begin, with room to grow for those
+    /// marked), each with its instance and world box if the scene has parts, and the emitters
+    /// of `lights`, in the world.
     #[allow(clippy::type_complexity)]
     fn lay_out(
         scene: &Scene,
         geometry: &Geometry,
-        trees: &[(&WideBvh<WIDTH>, Option<(&Instance, Aabb)>)],
+        trees: &[(&WideBvh<WIDTH>, Option<(&Instance, Aabb)>, bool)],
         lights: Option<&LightSet>,
     ) -> Result<Self, GpuError> {
         check_supported(geometry)?;
-        for (tree, _) in trees {
+        for (tree, _, _) in trees {
             check_tree(tree)?;
         }
-        let n_tris = geometry.triangles.len();
-        let masked = |material: u32| scene.material_mask.get(material as usize).is_some_and(Option::is_some);
-        // Each emitter's number plus one, by primitive (empty without light sampling).
-        let mut emitter_of = Vec::new();
-        let mut gpu_lights = Vec::new();
+        let emitters = Emitters::new(geometry, lights);
+        let mut packed = Self {
+            lights: emitters.records,
+            light_cdf: emitters.cdf,
+            sky_probability: emitters.sky_probability,
+            ..Self::default()
+        };
+        for &(tree, placed, grows) in trees {
+            let (nodes, prims) = (packed.nodes.len(), packed.prims.len());
+            tree_records(scene, geometry, tree, &emitters.of_prim, (nodes as u32, prims as u32), &mut packed);
+            let room = |n: usize| if grows { n + n / 8 + 64 } else { n };
+            let slot = TreeSlot {
+                first_node: nodes as u32,
+                node_room: room(packed.nodes.len() - nodes) as u32,
+                first_prim: prims as u32,
+                prim_room: room(packed.prims.len() - prims) as u32,
+            };
+            // The room beyond the tree: nodes and records nothing links to.
+            packed.nodes.resize((slot.first_node + slot.node_room) as usize, GpuNode::zeroed());
+            packed.prims.resize((slot.first_prim + slot.prim_room) as usize, GpuPrim::zeroed());
+            packed.slots.push(slot);
+            if let Some((instance, world)) = placed {
+                packed.instances.push(GpuInstance::new(instance, world, slot.first_node));
+            }
+        }
+        packed.emitter_of = emitters.of_prim;
+        Ok(packed)
+    }
+
+    /// Part `k`'s tree laid out alone for `slot` (its nodes linked and its leaves pointing
+    /// where the slot begins; only `nodes` and `prims` filled), for [`GpuScene::write_part`];
+    /// `None` if it does not fit the slot's room. `emitter_of` is [`Packed::emitter_of`] of
+    /// the layout the slot is in.
+    pub fn part_records(
+        scene: &Scene,
+        geometry: &Geometry,
+        k: usize,
+        slot: TreeSlot,
+        emitter_of: &[u32],
+    ) -> Result<Option<Self>, GpuError> {
+        let tree = geometry.part_wide(k);
+        check_supported(geometry)?;
+        check_tree(tree)?;
+        if tree.nodes.len().max(1) > slot.node_room as usize || tree.prim_indices.len() > slot.prim_room as usize {
+            return Ok(None);
+        }
+        let mut part = Self::default();
+        tree_records(scene, geometry, tree, emitter_of, (slot.first_node, slot.first_prim), &mut part);
+        Ok(Some(part))
+    }
+
+    /// The instances of `geometry`'s parts, each rooted where `slots` put its tree (empty for
+    /// one tree in place).
+    pub fn instance_records(geometry: &Geometry, slots: &[TreeSlot]) -> Vec<GpuInstance> {
+        if !is_instanced(geometry) {
+            return Vec::new();
+        }
+        let placed =
+            |k: usize| GpuInstance::new(geometry.part_instance(k), geometry.part_world_bounds(k), slots[k].first_node);
+        (0..geometry.part_count()).map(placed).collect()
+    }
+}
+
+/// Whether `geometry`'s parts are traced through their instances (not one tree in place).
+pub fn is_instanced(geometry: &Geometry) -> bool {
+    geometry.part_count() > 1 || !geometry.part_instance(0).is_identity()
+}
+
+/// Where one tree lies in the uploaded nodes and records: its first of each, and how many
+/// of each are kept for it. A tree that changes from frame to frame gets room to grow (an
+/// eighth more), so that its next tree, rebuilt with a few more nodes or leaves, is written
+/// in place rather than the whole scene laid out again.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TreeSlot {
+    pub first_node: u32,
+    pub node_room: u32,
+    pub first_prim: u32,
+    pub prim_room: u32,
+}
+
+/// The emitters of a light set as the kernels sample them, and each primitive's emitter.
+pub struct Emitters {
+    /// Each primitive's emitter number plus one (0: none), up to the last emitter.
+    pub of_prim: Vec<u32>,
+    pub records: Vec<GpuLight>,
+    pub cdf: Vec<f32>,
+    pub sky_probability: Option<f32>,
+}
+
+impl Emitters {
+    /// The emitters of `lights` (made for `geometry`) where they are in the world; none
+    /// without light sampling.
+    pub fn new(geometry: &Geometry, lights: Option<&LightSet>) -> Self {
+        let n_tris = geometry.triangle_count();
+        let mut of_prim = Vec::new();
+        let mut records = Vec::new();
         for (k, (p, area, selection)) in lights.iter().flat_map(|l| l.emitters()).enumerate() {
-            emitter_of.resize(emitter_of.len().max(p as usize + 1), 0);
-            emitter_of[p as usize] = k as u32 + 1;
+            of_prim.resize(of_prim.len().max(p as usize + 1), 0);
+            of_prim[p as usize] = k as u32 + 1;
             // Sampled where it is in the world (a part's primitives are in its object space).
             let GpuPrim { a, b, c } = world_record(geometry, n_tris, p);
             let b = if (p as usize) < n_tris { [b[0], b[1], b[2], area] } else { [b[0], 0.0, 0.0, area] };
-            gpu_lights.push(GpuLight { a, b, c: [c[0], c[1], c[2], selection] });
+            records.push(GpuLight { a, b, c: [c[0], c[1], c[2], selection] });
         }
-        let mut packed = Self {
-            lights: gpu_lights,
-            light_cdf: lights.map_or(Vec::new(), |l| l.cdf().to_vec()),
+        Self {
+            of_prim,
+            records,
+            cdf: lights.map_or(Vec::new(), |l| l.cdf().to_vec()),
             sky_probability: lights.map(LightSet::sky_probability),
-            ..Self::default()
-        };
-        for &(tree, placed) in trees {
-            let (node_base, record_base) = (packed.nodes.len() as u32, packed.prims.len() as u32);
-            // A leaf's primitives are a run of `prim_indices` already: the records keep its
-            // order (the padding between leaves becomes records no leaf covers), and the nodes
-            // their links.
-            packed.prims.par_extend(tree.prim_indices.par_iter().map(|&p| {
-                if p == PAD {
-                    return GpuPrim::zeroed();
+        }
+    }
+}
+
+/// Appends `tree`'s nodes and records to `packed`'s, the nodes linked and the leaves
+/// pointing as if they began at `(node_base, record_base)`. A leaf's primitives are a run of
+/// `prim_indices` already: the records keep its order (the padding between leaves becomes
+/// records no leaf covers).
+fn tree_records(
+    scene: &Scene,
+    geometry: &Geometry,
+    tree: &WideBvh<WIDTH>,
+    emitter_of: &[u32],
+    (node_base, record_base): (u32, u32),
+    packed: &mut Packed,
+) {
+    let n_tris = geometry.triangle_count();
+    let masked = |material: u32| scene.material_mask.get(material as usize).is_some_and(Option::is_some);
+    packed.prims.par_extend(tree.prim_indices.par_iter().map(|&p| {
+        if p == PAD {
+            return GpuPrim::zeroed();
+        }
+        let mut record = prim_record(geometry, n_tris, p);
+        record.c[3] = f32::from_bits(emitter_of.get(p as usize).copied().unwrap_or(0));
+        if (p as usize) < n_tris && masked(geometry.triangle_material[p as usize]) {
+            record.a[3] = f32::from_bits(record.a[3].to_bits() | MASKED);
+        }
+        record
+    }));
+    packed.nodes.par_extend(tree.nodes.par_iter().map(|node| {
+        let mut gpu = GpuNode { bounds: node.bounds, child: node.child, count: node.count };
+        for i in 0..WIDTH {
+            if !node.is_used(i) {
+                for row in &mut gpu.bounds {
+                    row[i] = 0.0;
                 }
-                let mut record = prim_record(geometry, n_tris, p);
-                record.c[3] = f32::from_bits(emitter_of.get(p as usize).copied().unwrap_or(0));
-                if (p as usize) < n_tris && masked(geometry.triangle_material[p as usize]) {
-                    record.a[3] = f32::from_bits(record.a[3].to_bits() | MASKED);
-                }
-                record
-            }));
-            packed.nodes.par_extend(tree.nodes.par_iter().map(|node| {
-                let mut gpu = GpuNode { bounds: node.bounds, child: node.child, count: node.count };
-                for i in 0..WIDTH {
-                    if !node.is_used(i) {
-                        for row in &mut gpu.bounds {
-                            row[i] = 0.0;
-                        }
-                        (gpu.child[i], gpu.count[i]) = (0, EMPTY_SLOT);
-                    } else if node.count[i] == 0 {
-                        gpu.child[i] += node_base;
-                    } else {
-                        gpu.child[i] += record_base;
-                    }
-                }
-                gpu
-            }));
-            if tree.nodes.is_empty() {
-                // Nothing to hit: a root whose slots are all empty.
-                packed.nodes.push(GpuNode { bounds: [[0.0; WIDTH]; 6], child: [0; WIDTH], count: [EMPTY_SLOT; WIDTH] });
-            }
-            if let Some((instance, world)) = placed {
-                packed.instances.push(GpuInstance::new(instance, world, node_base));
+                (gpu.child[i], gpu.count[i]) = (0, EMPTY_SLOT);
+            } else if node.count[i] == 0 {
+                gpu.child[i] += node_base;
+            } else {
+                gpu.child[i] += record_base;
             }
         }
-        Ok(packed)
+        gpu
+    }));
+    if tree.nodes.is_empty() {
+        // Nothing to hit: a root whose slots are all empty.
+        packed.nodes.push(GpuNode { bounds: [[0.0; WIDTH]; 6], child: [0; WIDTH], count: [EMPTY_SLOT; WIDTH] });
     }
 }
 
@@ -595,5 +710,57 @@ impl GpuScene {
         self.split = split;
         self.lights = packed.sky_probability.map(|sky| (sky, packed.light_cdf.len() as u32));
         Ok(())
+    }
+
+    /// Writes a part's tree in place: its nodes and records as [`Packed::part_records`] laid
+    /// them out for `slot`, a slot of the layout uploaded. Returns the bytes written, without
+    /// waiting for the GPU.
+    pub fn write_part(&self, gpu: &Gpu, slot: TreeSlot, part: &Packed) -> u64 {
+        let (nodes, prims) = (&part.nodes[..], &part.prims[..]);
+        assert!(nodes.len() <= slot.node_room as usize && prims.len() <= slot.prim_room as usize, "beyond the slot");
+        self.write_items(gpu, NODE_BINDINGS, self.split.nodes_per_binding, slot.first_node as usize, nodes);
+        self.write_items(gpu, PRIM_BINDINGS, self.split.prims_per_binding, slot.first_prim as usize, prims);
+        (std::mem::size_of_val(nodes) + std::mem::size_of_val(prims)) as u64
+    }
+
+    /// Writes the parts' instances (as many as were uploaded) and the emitters (as many as
+    /// were uploaded, their weights and the sky's probability), without waiting. Returns the
+    /// bytes written, or `None` (nothing written) if they are not as many as there are.
+    pub fn write_placement(&mut self, gpu: &Gpu, instances: &[GpuInstance], emitters: &Emitters) -> Option<u64> {
+        let writes = [
+            (INSTANCE_BINDING, bytemuck::cast_slice::<_, u8>(instances)),
+            (LIGHT_BINDINGS[0], bytemuck::cast_slice(&emitters.records)),
+            (LIGHT_BINDINGS[1], bytemuck::cast_slice(&emitters.cdf)),
+        ];
+        if instances.len() != self.split.instances
+            || writes.iter().any(|(k, d)| d.len() as u64 > self.buffers[*k].size())
+        {
+            return None;
+        }
+        if self.lights.map(|(_, n)| n as usize) != emitters.sky_probability.map(|_| emitters.cdf.len()) {
+            return None;
+        }
+        for &(k, data) in &writes {
+            if !data.is_empty() {
+                gpu.queue.write_buffer(&self.buffers[k], 0, data);
+            }
+        }
+        self.lights = emitters.sky_probability.map(|sky| (sky, emitters.cdf.len() as u32));
+        Some(writes.iter().map(|(_, d)| d.len() as u64).sum())
+    }
+
+    /// Writes `items` into the array cut across `bindings` (`per_binding` to each) from
+    /// entry `first` on.
+    fn write_items<T: Pod>(&self, gpu: &Gpu, bindings: [usize; SPLIT], per_binding: usize, first: usize, items: &[T]) {
+        let per_binding = per_binding.max(1);
+        let mut done = 0;
+        while done < items.len() {
+            let at = first + done;
+            let (binding, offset) = (at / per_binding, at % per_binding);
+            let n = (per_binding - offset).min(items.len() - done);
+            let bytes = bytemuck::cast_slice(&items[done..done + n]);
+            gpu.queue.write_buffer(&self.buffers[bindings[binding]], (offset * std::mem::size_of::<T>()) as u64, bytes);
+            done += n;
+        }
     }
 }

@@ -473,21 +473,80 @@ fn assert_alike(cpu: &[Vec3], gpu: &[Vec3], min_lit: usize, what: &str) {
 }
 
 /// The viewer's pipeline with the GPU tracing its frames ([`GpuFrames`]) shows the CPU's
-/// frames: while the scene moves (the moved tree and lights uploaded), while it is still
-/// (accumulating), after the camera moved and after light sampling was switched.
+/// frames: while the scene moves (what moved uploaded), while it is still (accumulating),
+/// after the camera moved and after light sampling was switched. Two scenes: a deforming
+/// floor and lamp (`moving_light.json`), and parts that move rigidly around a deforming one
+/// ([`moving_parts`]).
 #[test]
 #[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
 fn the_viewers_frames_on_the_gpu_are_the_cpus() {
+    let moving_light = include_str!("../../phr-render/tests/support/moving_light.json");
     for pipeline in PipelineKind::ALL {
-        viewer_frames_alike(pipeline);
+        viewer_frames_alike(moving_light, pipeline, false);
+        viewer_frames_alike(&moving_parts(), pipeline, true);
     }
 }
 
-/// [`the_viewers_frames_on_the_gpu_are_the_cpus`] with one pipeline.
-fn viewer_frames_alike(pipeline: PipelineKind) {
-    let scene_text = include_str!("../../phr-render/tests/support/moving_light.json");
+/// A scene of a static floor of 2,048 triangles; a box, a sphere and a lamp that move rigidly
+/// (three parts under instances, more than the CPU searches without a top-level tree); and a
+/// small waving sheet (a deforming part).
+fn moving_parts() -> String {
+    let n = 32;
+    let floor_vertices: Vec<String> = (0..=n)
+        .flat_map(|i| {
+            (0..=n).map(move |j| {
+                format!("[{}, 0, {}]", -3.0 + 6.0 * i as f32 / n as f32, -3.0 + 6.0 * j as f32 / n as f32)
+            })
+        })
+        .collect();
+    let floor_faces: Vec<String> = (0..n)
+        .flat_map(|i| {
+            (0..n).flat_map(move |j| {
+                let v = |a: usize, b: usize| a * (n + 1) + b;
+                [
+                    format!("[{}, {}, {}]", v(i, j), v(i, j + 1), v(i + 1, j)),
+                    format!("[{}, {}, {}]", v(i + 1, j), v(i, j + 1), v(i + 1, j + 1)),
+                ]
+            })
+        })
+        .collect();
+    format!(
+        r#"{{
+  "background": [0.05, 0.05, 0.05],
+  "camera": {{ "position": [0, 2, 5], "look_at": [0, 0.5, 0], "vfov": 50 }},
+  "materials": {{
+    "white": {{ "type": "lambertian", "albedo": 0.7 }},
+    "steel": {{ "type": "metal", "albedo": [0.8, 0.7, 0.6], "fuzz": 0.1 }},
+    "lamp": {{ "type": "emissive", "emit": [8, 8, 8], "two_sided": true }}
+  }},
+  "objects": [
+    {{ "type": "triangles", "material": "white", "vertices": [{}], "faces": [{}] }},
+    {{ "type": "sphere", "center": [-1.2, 0.5, 0], "radius": 0.5, "material": "steel",
+       "animate": {{ "type": "oscillate", "amplitude": [0, 0.4, 0.3], "period": 1.3 }} }},
+    {{ "type": "triangles", "material": "white",
+       "vertices": [[0.6, 0, -0.4], [1.4, 0, -0.4], [1.0, 0.9, 0.0], [1.0, 0, 0.4]],
+       "faces": [[0, 1, 2], [1, 3, 2], [3, 0, 2], [0, 3, 1]],
+       "animate": {{ "type": "rotate", "axis": [0.3, 1, 0], "degrees_per_second": 120 }} }},
+    {{ "type": "quad", "Q": [-0.5, 2.5, -0.5], "u": [1, 0, 0], "v": [0, 0, 1], "material": "lamp",
+       "animate": {{ "type": "oscillate", "amplitude": [1.2, 0, 0.5], "period": 2 }} }},
+    {{ "type": "triangles", "material": "steel",
+       "vertices": [[-0.5, 0.2, -1.5], [0, 0.2, -1.5], [0.5, 0.2, -1.5], [-0.5, 0.7, -1.5], [0, 0.7, -1.5], [0.5, 0.7, -1.5]],
+       "faces": [[0, 1, 3], [1, 4, 3], [1, 2, 4], [2, 5, 4]],
+       "animate": {{ "type": "wave", "amplitude": 0.1, "wavelength": 0.8, "period": 1.0, "direction": [1, 1, 0] }} }}
+  ]
+}}"#,
+        floor_vertices.join(", "),
+        floor_faces.join(", ")
+    )
+}
+
+/// [`the_viewers_frames_on_the_gpu_are_the_cpus`] with one scene and one pipeline. With
+/// `small_changes` (most of the scene static or rigid) and the scene cut into parts, a moving
+/// frame writes only what changed: less than a third of what a whole upload writes, once the
+/// deforming part's tree has room to change in place.
+fn viewer_frames_alike(scene_text: &str, pipeline: PipelineKind, small_changes: bool) {
     let make = || {
-        let scene = parse_scene(scene_text, Path::new("moving_light.json")).unwrap();
+        let scene = parse_scene(scene_text, Path::new("moving.json")).unwrap();
         let camera = scene.view(None).unwrap();
         let settings = PipelineSettings {
             builder: Builder::PHR_FAST,
@@ -503,7 +562,8 @@ fn viewer_frames_alike(pipeline: PipelineKind) {
     };
     let mut on_gpu = make().with_tracer(Box::new(GpuFrames::new(gpu().clone())));
     let mut on_cpu = make();
-    for frame in 0..12 {
+    let mut whole = 0;
+    for frame in 0..14 {
         for p in [&mut on_gpu, &mut on_cpu] {
             p.playing = !(4..8).contains(&frame);
             if frame == 6 {
@@ -518,9 +578,16 @@ fn viewer_frames_alike(pipeline: PipelineKind) {
             }
         }
         let (g, c) = (on_gpu.step(0.1), on_cpu.step(0.1));
-        assert_eq!(g.device, "gpu", "{pipeline:?}, frame {frame}");
-        assert_eq!((g.moved, g.samples), (c.moved, c.samples), "{pipeline:?}, frame {frame}");
-        assert_alike(&on_cpu.raw_image(), &on_gpu.raw_image(), 300, &format!("{pipeline:?} viewer frame {frame}"));
+        let what = format!("{pipeline:?} viewer frame {frame}");
+        assert_eq!(g.device, "gpu", "{what}");
+        assert_eq!((g.moved, g.samples), (c.moved, c.samples), "{what}");
+        assert_alike(&on_cpu.raw_image(), &on_gpu.raw_image(), 300, &what);
+        if matches!(frame, 0 | 8) {
+            // Uploaded whole: the first frame, and light sampling switched on.
+            whole = g.upload_bytes;
+        } else if small_changes && g.moved && pipeline != PipelineKind::Thesis && !matches!(frame, 1 | 9) {
+            assert!(g.upload_bytes * 3 < whole, "{what}: {} bytes of {whole} uploaded", g.upload_bytes);
+        }
     }
 }
 

@@ -40,6 +40,8 @@ pub struct TracedFrame {
     /// out what moved and writing it (included in the render time the pipeline measures, and
     /// reported apart).
     pub upload_ms: f64,
+    /// Bytes written to the device for it (what changed since the last frame).
+    pub upload_bytes: u64,
 }
 
 /// A device that traces frames.

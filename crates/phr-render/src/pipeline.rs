@@ -154,6 +154,8 @@ pub struct FrameReport {
     pub render_ms: f64,
     /// Of `render_ms`, moving the scene to the device that traced the frame (0 on the CPU).
     pub upload_ms: f64,
+    /// Bytes written to that device for this frame: what changed (0 on the CPU).
+    pub upload_bytes: u64,
     /// Denoising: this frame through the temporal filter (and tracing its guide), or the
     /// accumulated image (and its guide, after a restart) on the frames that do.
     pub denoise_ms: f64,
@@ -184,12 +186,12 @@ impl FrameReport {
     /// The columns of [`FrameReport::csv_row`]: what `phr view --headless` and `phr animate`
     /// write per frame.
     pub const CSV_HEADER: &'static str =
-        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,tree_age,denoise_ms,upload_ms,device,builder";
+        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,tree_age,denoise_ms,upload_ms,upload_bytes,device,builder";
 
     /// This frame as a CSV row of [`FrameReport::CSV_HEADER`]'s columns.
     pub fn csv_row(&self) -> String {
         format!(
-            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{},{:.3},{:.3},{},{}",
+            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{},{:.3},{:.3},{},{},{}",
             self.frame,
             self.time,
             self.moved as u8,
@@ -207,6 +209,7 @@ impl FrameReport {
             self.tree_age,
             self.denoise_ms,
             self.upload_ms,
+            self.upload_bytes,
             self.device,
             self.builder
         )
@@ -476,6 +479,7 @@ impl FramePipeline {
         let (traced, first_hits, device) = self.render(temporal);
         report.render_ms = ms_since(render_start);
         report.upload_ms = traced.upload_ms;
+        report.upload_bytes = traced.upload_bytes;
         report.device = device;
         let (pixels, rays) = (traced.pixels, traced.rays);
         self.film.add_frame(&pixels);
@@ -753,7 +757,11 @@ impl FramePipeline {
         }
         if guided {
             let (pixels, first_hits, stats) = renderer.render_frame_guided(frame);
-            return (TracedFrame { pixels, rays: stats.rays, upload_ms: 0.0 }, Some(first_hits), "cpu");
+            return (
+                TracedFrame { pixels, rays: stats.rays, upload_ms: 0.0, upload_bytes: 0 },
+                Some(first_hits),
+                "cpu",
+            );
         }
         let (pixels, stats) = match s.mode {
             ViewMode::Colour => renderer.render_frame(frame),
@@ -781,7 +789,7 @@ impl FramePipeline {
                 (Vec3::new(linear(r), linear(g), linear(b)), 1)
             }),
         };
-        (TracedFrame { pixels, rays: stats.rays, upload_ms: 0.0 }, None, "cpu")
+        (TracedFrame { pixels, rays: stats.rays, upload_ms: 0.0, upload_bytes: 0 }, None, "cpu")
     }
 
     /// The first hits of the current view, `samples` jittered ones per pixel.

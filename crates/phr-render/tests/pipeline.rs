@@ -327,7 +327,7 @@ impl FrameTracer for JobTracer {
         let size = RenderSettings { width: job.width, height: job.height, spp: 1, max_depth: job.max_depth };
         let renderer = Renderer::new(job.scene, job.geometry, job.camera, &size, job.lights).with_seed(job.seed);
         let (pixels, stats) = renderer.render_frame(job.frame);
-        Ok(TracedFrame { pixels, rays: stats.rays, upload_ms: 0.0 })
+        Ok(TracedFrame { pixels, rays: stats.rays, upload_ms: 0.0, upload_bytes: 0 })
     }
 }
 

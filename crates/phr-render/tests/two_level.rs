@@ -249,6 +249,10 @@ fn placed_parts_equal_brute_force() {
     let groups = vec![(0..2).collect(), (2..9).collect(), (9..n).collect(), vec![n, n + 1]];
     g.split(groups, &Builder::PHR_HQ);
     assert_eq!(g.part_count(), 4);
+    // What a device keeping the parts reads to know which ones to upload again.
+    let generations = |g: &Geometry| (0..g.part_count()).map(|k| g.part_generation(k)).collect::<Vec<_>>();
+    let split = generations(&g);
+    assert!(split.windows(2).all(|w| w[0] != w[1]), "each part packed on its own: {split:?}");
     let maps = [
         Affine3A::from_scale_rotation_translation(Vec3::new(1.5, 0.5, 2.0), Quat::from_rotation_y(0.8), Vec3::X),
         Affine3A::from_mat3_translation(
@@ -268,6 +272,7 @@ fn placed_parts_equal_brute_force() {
         g.place(&[(0, m[0]), (1, m[1]), (2, m[2]), (3, m[3])]);
         check_placed(&g, n, shift, layout);
     }
+    assert_eq!(generations(&g), split, "placing parts changes none of their trees");
     // Part 2 (in place) deforms: its new tree alone, without placing again, must be found
     // where its triangles now are (rays skip a part whose box they miss).
     for t in &mut g.triangles[9..] {
@@ -276,6 +281,9 @@ fn placed_parts_equal_brute_force() {
     let boxes = g.part_boxes(2);
     g.set_part_bvh(2, Builder::PHR_HQ.build(&boxes));
     check_placed(&g, n, shift, 2);
+    let rebuilt = generations(&g);
+    let changed = |a: &[u64], b: &[u64]| (0..a.len()).filter(|&k| a[k] != b[k]).collect::<Vec<_>>();
+    assert_eq!(changed(&split, &rebuilt), [2], "a new tree for part 2 alone");
     // And again, its wide tree built straight by PHR, without a binary tree: the counting
     // traversal then walks the wide tree.
     for t in &mut g.triangles[9..] {
@@ -286,6 +294,10 @@ fn placed_parts_equal_brute_force() {
     g.set_part_wide(2, |wide| dynamic.update_wide(&boxes, wide));
     assert!(g.part_bvh(2).nodes.is_empty() && !g.part_wide(2).nodes.is_empty());
     check_placed(&g, n, shift, 3);
+    let built = generations(&g);
+    assert_eq!(changed(&rebuilt, &built), [2]);
+    g.refit_part(2, None);
+    assert_eq!(changed(&built, &generations(&g)), [2], "a refit changes the part");
     for ray in rays(500, 11) {
         let counted = g.intersect_counted(&ray, &mut TraversalStats::default()).map(|h| (h.t, h.prim));
         assert_eq!(counted, g.intersect(&ray).map(|h| (h.t, h.prim)), "counting traversal, direct wide part");
@@ -295,6 +307,7 @@ fn placed_parts_equal_brute_force() {
     let nodes = tree.nodes.len();
     g.set_bvh(tree);
     assert_eq!(g.part_count(), 1);
+    assert!(!split.contains(&g.part_generation(0)) && g.part_generation(0) > built[2], "never a generation again");
     assert_eq!(g.world_triangle(3), g.triangles[3]);
     assert!(rays(100, 3).iter().any(|r| g.intersect(r).is_some()));
     // The benchmarks take the tree out to set it again: they must get it back, not an empty one.

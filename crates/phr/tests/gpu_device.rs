@@ -54,7 +54,8 @@ fn the_gpu_animates_with_the_thesis_s_pipeline_only() {
 
 /// `phr view --device gpu`, headless: the moving bunny of a scene file, with the viewer's
 /// light sampling and denoiser, its colour frames traced on the GPU (the CSV's `device`), the
-/// scene's moved parts uploaded when it moves and not when it is paused, the frames as PNGs.
+/// scene's moved parts' instances uploaded when it moves and nothing when it is paused, the
+/// frames as PNGs.
 #[cfg(feature = "gpu")]
 #[test]
 #[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
@@ -80,9 +81,15 @@ fn the_viewer_traces_its_frames_on_the_gpu() {
             assert!(csv.num(row, "render_ms") >= csv.num(row, "upload_ms"));
             assert!(out_dir.join(format!("frame{row:05}.png")).is_file());
         }
-        // The scene goes up once; then again each frame it moves.
+        // The scene goes up once; then, each frame it moves, what moved: the turning bunny's
+        // instance and the emitters, not Sponza's or the bunny's triangles.
         let uploads = (1..3).filter(|&row| csv.num(row, "upload_ms") > 0.0).count();
         assert_eq!(uploads, if paused { 0 } else { 2 }, "{out_dir:?}");
+        assert!(csv.num(0, "upload_bytes") > 4e6, "{out_dir:?}: {} bytes", csv.num(0, "upload_bytes"));
+        for row in 1..3 {
+            let bytes = csv.num(row, "upload_bytes");
+            assert!(bytes < 65536.0 && (bytes > 0.0) != paused, "{out_dir:?}, row {row}: {bytes} bytes");
+        }
     }
 }
 

@@ -124,6 +124,8 @@ pub struct Geometry {
     /// triangle hit where its material's mask does not cover it is no hit.
     masks: Vec<AlphaMask>,
     material_mask: Vec<Option<u32>>,
+    /// Parts packed so far: the last one's [`Part::generation`].
+    packings: u64,
 }
 
 /// What replaces the scene-order triangles once they are released: their number, and for
@@ -179,6 +181,8 @@ struct Part {
     /// then takes each entry on its own ([`Part::test_packed`]) instead of a block of 4.
     entry_tests: bool,
     instance: Instance,
+    /// Changes whenever the part's tree or primitives do ([`Geometry::part_generation`]).
+    generation: u64,
 }
 
 /// Renumbers a part's primitive indices (its order, from 0) to the scene's (`prims`);
@@ -253,6 +257,7 @@ impl Geometry {
             released: None,
             masks: scene.masks.clone(),
             material_mask: if scene.masks.is_empty() { Vec::new() } else { scene.material_mask.clone() },
+            packings: 0,
         };
         g.update_boxes();
         g
@@ -557,6 +562,8 @@ impl Geometry {
         packed.repack(&self.parts[k].wide.prim_indices, self.scene_triangles());
         self.parts[k].packed = packed;
         self.parts[k].entry_tests = self.needs_entry_tests(k);
+        self.packings += 1;
+        self.parts[k].generation = self.packings;
     }
 
     /// Whether part `k` holds spheres or triangles with an alpha mask ([`Part::entry_tests`]).
@@ -652,6 +659,13 @@ impl Geometry {
     /// The wide tree of part `k` that the queries trace.
     pub fn part_wide(&self, k: usize) -> &WideBvh<WIDTH> {
         &self.parts[k].wide
+    }
+
+    /// Changes whenever part `k`'s tree or primitives change (a build, a refit, a split),
+    /// and only then: a device that keeps the parts uploads again those whose generation
+    /// changed, and only the placement of the others. Never the same for two packings.
+    pub fn part_generation(&self, k: usize) -> u64 {
+        self.parts[k].generation
     }
 
     /// Where part `k` is placed in the world.

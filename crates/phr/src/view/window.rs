@@ -563,7 +563,8 @@ impl ViewerApp {
             row("wide tree + packing", format!("{:.2} ms", report.wide_ms));
             row("render", format!("{:.2} ms on the {}", report.render_ms, report.device));
             if report.device != "cpu" {
-                row("of which upload", format!("{:.2} ms", report.upload_ms));
+                let kib = report.upload_bytes as f64 / 1024.0;
+                row("of which upload", format!("{:.2} ms ({kib:.1} KiB)", report.upload_ms));
             }
             row("frame", format!("{:.2} ms", report.frame_ms));
             row("fps", format!("{:.1}", 1e3 / report.frame_ms.max(1e-3)));
