@@ -17,9 +17,9 @@
 //! the viewer's frames (`phr view --device gpu`).
 //!
 //! Colour textures, alpha masks and environment maps are looked up and sampled as on the CPU.
-//! Not yet on the GPU (each refused with a clear error, never drawn wrong): meshes placed
-//! many times (front ends flatten them), the denoiser. The parts of a two-level scene are
-//! traced through their instances, as on the CPU.
+//! The parts of a two-level scene and the copies of meshes placed many times are traced
+//! through their instances under a top-level tree, as on the CPU. Not yet on the GPU: the
+//! denoiser (the front ends run the CPU's).
 
 pub mod device;
 pub mod frames;

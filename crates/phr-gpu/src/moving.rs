@@ -1,13 +1,14 @@
 //! A moving scene on the GPU, uploaded part by part: what [`crate::GpuFrames`] writes when
-//! the pipeline's scene changed. A rigid motion changes only the parts' instances (and the
-//! emitters, sampled in the world), so only those are written; a deforming part whose tree
+//! the pipeline's scene changed. A rigid motion changes only the instances (of parts and of
+//! copies of meshes placed many times), the top-level tree over them and the emitters
+//! (sampled in the world), so only those are written; a deforming part whose tree
 //! was refitted or rebuilt is written into its own slot ([`TreeSlot`]), the other parts'
 //! trees and records stay as they are. The whole scene is laid out again only when the
 //! parts themselves changed (a split, another pipeline) or a part outgrew its slot, and then
 //! with room to grow for every part seen changing.
 
 use crate::device::{Gpu, GpuError};
-use crate::scene::{is_instanced, Emitters, GpuScene, Packed, TreeSlot};
+use crate::scene::{is_instanced, top_records, Emitters, GpuScene, Packed, TreeSlot};
 use phr_render::frame_tracer::FrameJob;
 
 /// What is on the GPU of a pipeline's moving scene.
@@ -19,6 +20,9 @@ pub(crate) struct Uploaded {
     instanced: bool,
     /// [`Packed::emitter_of`] of the records uploaded.
     emitter_of: Vec<u32>,
+    /// [`Packed::mesh_roots`] and [`Packed::top`] as uploaded.
+    mesh_roots: Vec<u32>,
+    top: Option<TreeSlot>,
     /// The parts seen changing since the first upload: laid out with room to grow.
     changing: Vec<bool>,
 }
@@ -31,6 +35,8 @@ impl Uploaded {
             parts: (0..g.part_count()).map(|k| (g.part_generation(k), packed.slots[k])).collect(),
             instanced: is_instanced(g),
             emitter_of: packed.emitter_of.clone(),
+            mesh_roots: packed.mesh_roots.clone(),
+            top: packed.top,
             changing,
         }
     }
@@ -41,7 +47,9 @@ impl Uploaded {
     /// written). Does not wait for the GPU.
     pub(crate) fn update(&mut self, gpu: &Gpu, scene: &mut GpuScene, job: &FrameJob) -> Result<(), GpuError> {
         let g = job.geometry;
-        let same_parts = g.part_count() == self.parts.len() && is_instanced(g) == self.instanced;
+        let same_parts = g.part_count() == self.parts.len()
+            && is_instanced(g) == self.instanced
+            && g.copied_mesh_count() == self.mesh_roots.len();
         if same_parts {
             for (k, changing) in self.changing.iter_mut().enumerate() {
                 *changing |= g.part_generation(k) != self.parts[k].0;
@@ -80,9 +88,22 @@ impl Uploaded {
             }
         }
         let slots: Vec<TreeSlot> = self.parts.iter().map(|&(_, slot)| slot).collect();
-        let Some(mut bytes) = scene.write_placement(gpu, &Packed::instance_records(g, &slots), &emitters) else {
+        let instances = Packed::instance_records(g, &slots, &self.mesh_roots)?;
+        // The top level over the instances where they are now, in its slot.
+        let mut top = None;
+        if let Some(slot) = self.top {
+            let nodes = top_records(&instances, slot.first_node)?;
+            if nodes.len() > slot.node_room as usize {
+                return Ok(false);
+            }
+            top = Some((slot, Packed { nodes, ..Packed::default() }));
+        }
+        let Some(mut bytes) = scene.write_placement(gpu, &instances, &emitters) else {
             return Ok(false);
         };
+        if let Some((slot, nodes)) = top {
+            bytes += scene.write_part(gpu, slot, &nodes);
+        }
         for (k, part) in trees {
             bytes += scene.write_part(gpu, slots[k], &part);
             self.parts[k].0 = g.part_generation(k);

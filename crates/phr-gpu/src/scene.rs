@@ -5,10 +5,10 @@
 
 use crate::device::{Binding, Gpu, GpuError};
 use bytemuck::{Pod, Zeroable};
-use phr_bvh::instance::Instance;
-use phr_bvh::wide::{WideBvh, PAD};
+use phr_bvh::instance::{top_level_tree, Instance};
+use phr_bvh::wide::{WideBvh, WideNode, PAD};
 use phr_bvh::Aabb;
-use phr_render::geometry::{Geometry, WIDTH};
+use phr_render::geometry::{CopiedMeshView, Geometry, WIDTH};
 use phr_render::lights::LightSet;
 use phr_render::material::Material;
 use phr_render::scene::{Background, Scene};
@@ -17,6 +17,8 @@ use rayon::prelude::*;
 /// The kernels' traversal stack (`STACK` in `shaders/common.wgsl`): a tree whose stack bound
 /// (plus one node's children) exceeds it is refused.
 pub const STACK: usize = 128;
+/// The same for the top-level tree over the instances (`TOP_STACK`).
+pub const TOP_STACK: usize = 64;
 
 /// The WGSL every kernel starts with.
 pub(crate) const COMMON_WGSL: &str = include_str!("shaders/common.wgsl");
@@ -69,6 +71,11 @@ pub const INSTANCE_MIRRORS: u32 = 2;
 pub const INSTANCE_EMPTY: u32 = 4;
 
 impl GpuInstance {
+    /// Its flags ([`INSTANCE_IDENTITY`], ...).
+    pub fn flags(&self) -> u32 {
+        self.hi[3].to_bits()
+    }
+
     fn new(instance: &Instance, world: Aabb, root: u32) -> Self {
         let column = |v: glam::Vec3A| [v.x, v.y, v.z, 0.0];
         let affine = |a: &glam::Affine3A| {
@@ -137,6 +144,11 @@ pub struct Packed {
     pub slots: Vec<TreeSlot>,
     /// Each primitive's emitter number plus one, as the records hold it ([`Emitters`]).
     pub emitter_of: Vec<u32>,
+    /// The root node of each mesh placed many times (the copies' instances follow the
+    /// parts').
+    pub mesh_roots: Vec<u32>,
+    /// Where the top-level tree over the instances lies (`None`: no instances).
+    pub top: Option<TreeSlot>,
     /// Every colour texture's texels (sRGB, `r | g << 8 | b << 16`), one after the other, and
     /// each texture's first texel, width and height.
     pub texels: Vec<u32>,
@@ -220,6 +232,17 @@ impl Packed {
             })
             .collect();
         (self.texels, self.textures, self.uvs) = texture_records(scene, geometry);
+        if !self.uvs.is_empty() && geometry.copy_count() > 0 {
+            // The copied meshes' triangles are numbered after the spheres (`add_copies`).
+            self.uvs.resize(3 * geometry.prim_count(), [0.0; 2]);
+            for m in 0..geometry.copied_mesh_count() {
+                let mesh = geometry.copied_mesh(m);
+                match mesh.triangle_uv.is_empty() {
+                    true => self.uvs.resize(self.uvs.len() + 3 * mesh.triangles.len(), [0.0; 2]),
+                    false => self.uvs.extend(mesh.triangle_uv.iter().flat_map(|c| c.map(|uv| uv.to_array()))),
+                }
+            }
+        }
         if let Background::Environment(map) = &scene.background {
             let t = map.tables();
             self.environment_texels = t.texels.iter().map(|c| [c.x, c.y, c.z, 0.0]).collect();
@@ -263,26 +286,58 @@ impl Packed {
             sky_probability: emitters.sky_probability,
             ..Self::default()
         };
+        // Copies are reached through instances: a tree in place then gets one too.
+        let instanced = geometry.copy_count() > 0 || trees.iter().any(|(_, placed, _)| placed.is_some());
         for &(tree, placed, grows) in trees {
-            let (nodes, prims) = (packed.nodes.len(), packed.prims.len());
-            tree_records(scene, geometry, tree, &emitters.of_prim, (nodes as u32, prims as u32), &mut packed);
-            let room = |n: usize| if grows { n + n / 8 + 64 } else { n };
-            let slot = TreeSlot {
-                first_node: nodes as u32,
-                node_room: room(packed.nodes.len() - nodes) as u32,
-                first_prim: prims as u32,
-                prim_room: room(packed.prims.len() - prims) as u32,
-            };
-            // The room beyond the tree: nodes and records nothing links to.
-            packed.nodes.resize((slot.first_node + slot.node_room) as usize, GpuNode::zeroed());
-            packed.prims.resize((slot.first_prim + slot.prim_room) as usize, GpuPrim::zeroed());
+            let slot = packed.add_tree(grows, |packed, bases| {
+                tree_records(scene, geometry, tree, &emitters.of_prim, bases, packed);
+            });
             packed.slots.push(slot);
+            let placed = placed.or(instanced.then(|| (&Instance::IDENTITY, tree_bounds(tree))));
             if let Some((instance, world)) = placed {
                 packed.instances.push(GpuInstance::new(instance, world, slot.first_node));
             }
         }
         packed.emitter_of = emitters.of_prim;
+        packed.add_copies(geometry)?;
+        if instanced {
+            let top = top_records(&packed.instances, packed.nodes.len() as u32)?;
+            packed.top = Some(packed.add_tree(true, |packed, _| packed.nodes.extend(top)));
+        }
         Ok(packed)
+    }
+
+    /// Appends a tree (`records` appends its nodes and primitive records, given where they
+    /// begin) with room to grow if `grows`, and returns its slot.
+    fn add_tree(&mut self, grows: bool, records: impl FnOnce(&mut Self, (u32, u32))) -> TreeSlot {
+        let (nodes, prims) = (self.nodes.len(), self.prims.len());
+        records(self, (nodes as u32, prims as u32));
+        let room = |n: usize| if grows { n + n / 8 + 64 } else { n };
+        let slot = TreeSlot {
+            first_node: nodes as u32,
+            node_room: room(self.nodes.len() - nodes) as u32,
+            first_prim: prims as u32,
+            prim_room: room(self.prims.len() - prims) as u32,
+        };
+        // The room beyond the tree: nodes and records nothing links to.
+        self.nodes.resize((slot.first_node + slot.node_room) as usize, GpuNode::zeroed());
+        self.prims.resize((slot.first_prim + slot.prim_room) as usize, GpuPrim::zeroed());
+        slot
+    }
+
+    /// The meshes placed many times, each tree once ([`Packed::mesh_roots`]), their triangles
+    /// numbered after the scene's primitives, mesh after mesh; and an instance per copy.
+    fn add_copies(&mut self, geometry: &Geometry) -> Result<(), GpuError> {
+        let mut number = geometry.prim_count() as u32;
+        for m in 0..geometry.copied_mesh_count() {
+            let mesh = geometry.copied_mesh(m);
+            check_tree(mesh.wide)?;
+            let slot = self.add_tree(false, |packed, bases| copied_mesh_records(&mesh, number, bases, packed));
+            self.mesh_roots.push(slot.first_node);
+            number += mesh.triangles.len() as u32;
+        }
+        self.instances.extend(copy_instances(geometry, &self.mesh_roots)?);
+        Ok(())
     }
 
     /// Part `k`'s tree laid out alone for `slot` (its nodes linked and its leaves pointing
@@ -307,21 +362,83 @@ impl Packed {
         Ok(Some(part))
     }
 
-    /// The instances of `geometry`'s parts, each rooted where `slots` put its tree (empty for
-    /// one tree in place).
-    pub fn instance_records(geometry: &Geometry, slots: &[TreeSlot]) -> Vec<GpuInstance> {
+    /// The instances of `geometry`'s parts, each rooted where `slots` put its tree, and of its
+    /// copies, rooted at their meshes' `mesh_roots` (empty for one tree in place).
+    pub fn instance_records(
+        geometry: &Geometry,
+        slots: &[TreeSlot],
+        mesh_roots: &[u32],
+    ) -> Result<Vec<GpuInstance>, GpuError> {
         if !is_instanced(geometry) {
-            return Vec::new();
+            return Ok(Vec::new());
         }
         let placed =
             |k: usize| GpuInstance::new(geometry.part_instance(k), geometry.part_world_bounds(k), slots[k].first_node);
-        (0..geometry.part_count()).map(placed).collect()
+        let mut instances: Vec<GpuInstance> = (0..geometry.part_count()).map(placed).collect();
+        instances.extend(copy_instances(geometry, mesh_roots)?);
+        Ok(instances)
     }
 }
 
-/// Whether `geometry`'s parts are traced through their instances (not one tree in place).
+/// Whether `geometry` is traced through instances (its parts, or copies of meshes placed many
+/// times), not as one tree in place.
 pub fn is_instanced(geometry: &Geometry) -> bool {
-    geometry.part_count() > 1 || !geometry.part_instance(0).is_identity()
+    geometry.part_count() > 1 || !geometry.part_instance(0).is_identity() || geometry.copy_count() > 0
+}
+
+/// An instance per copy of `geometry`'s meshes placed many times, rooted at its mesh's tree.
+fn copy_instances(geometry: &Geometry, mesh_roots: &[u32]) -> Result<Vec<GpuInstance>, GpuError> {
+    (0..geometry.copy_count())
+        .map(|c| match geometry.copy_placement(c) {
+            Some((m, instance, world)) => Ok(GpuInstance::new(instance, world, mesh_roots[m])),
+            None => Err(GpuError::Unsupported("copies of meshes whose trees are not built yet".into())),
+        })
+        .collect()
+}
+
+/// The box of `tree`'s root's children.
+fn tree_bounds(tree: &WideBvh<WIDTH>) -> Aabb {
+    let Some(root) = tree.nodes.first() else { return Aabb::EMPTY };
+    (0..WIDTH).filter(|&i| root.is_used(i)).fold(Aabb::EMPTY, |b, i| b.union(root.child_bounds(i)))
+}
+
+/// The top-level tree over `instances` by their world boxes (those with nothing to hit left
+/// out), as nodes linked from `node_base` on, a leaf slot's child the instance's number
+/// ([`phr_bvh::instance::top_level_tree`], the tree the CPU's top levels trace).
+pub fn top_records(instances: &[GpuInstance], node_base: u32) -> Result<Vec<GpuNode>, GpuError> {
+    let hittable: Vec<u32> =
+        (0..instances.len() as u32).filter(|&k| instances[k as usize].flags() & INSTANCE_EMPTY == 0).collect();
+    let boxes: Vec<Aabb> = hittable
+        .iter()
+        .map(|&k| {
+            let i = &instances[k as usize];
+            Aabb::new(glam::Vec3::from_slice(&i.lo[..3]), glam::Vec3::from_slice(&i.hi[..3]))
+        })
+        .collect();
+    if boxes.is_empty() {
+        return Ok(vec![EMPTY_ROOT]);
+    }
+    let tree = top_level_tree(&boxes);
+    // The top level's walk pushes every hit child but the nearest.
+    let needed = tree.stack_bound() + WIDTH;
+    if needed > TOP_STACK {
+        return Err(GpuError::Unsupported(format!(
+            "a top-level tree whose traversal may need {needed} stack entries (the GPU's holds {TOP_STACK})"
+        )));
+    }
+    Ok(tree
+        .nodes
+        .iter()
+        .map(|node| {
+            let mut gpu = gpu_node(node, node_base, 0);
+            for i in (0..WIDTH).filter(|&i| node.is_used(i) && node.count[i] > 0) {
+                // One instance per leaf slot: the slot holds its number.
+                debug_assert_eq!(node.count[i], 1);
+                gpu.child[i] = hittable[tree.prim_indices[node.child[i] as usize] as usize];
+            }
+            gpu
+        })
+        .collect())
 }
 
 /// Where one tree lies in the uploaded nodes and records: its first of each, and how many
@@ -394,25 +511,55 @@ fn tree_records(
         }
         record
     }));
-    packed.nodes.par_extend(tree.nodes.par_iter().map(|node| {
-        let mut gpu = GpuNode { bounds: node.bounds, child: node.child, count: node.count };
-        for i in 0..WIDTH {
-            if !node.is_used(i) {
-                for row in &mut gpu.bounds {
-                    row[i] = 0.0;
-                }
-                (gpu.child[i], gpu.count[i]) = (0, EMPTY_SLOT);
-            } else if node.count[i] == 0 {
-                gpu.child[i] += node_base;
-            } else {
-                gpu.child[i] += record_base;
-            }
-        }
-        gpu
-    }));
+    packed.nodes.par_extend(tree.nodes.par_iter().map(|node| gpu_node(node, node_base, record_base)));
     if tree.nodes.is_empty() {
-        // Nothing to hit: a root whose slots are all empty.
-        packed.nodes.push(GpuNode { bounds: [[0.0; WIDTH]; 6], child: [0; WIDTH], count: [EMPTY_SLOT; WIDTH] });
+        packed.nodes.push(EMPTY_ROOT);
+    }
+}
+
+/// A root with nothing to hit: its slots all empty.
+const EMPTY_ROOT: GpuNode = GpuNode { bounds: [[0.0; WIDTH]; 6], child: [0; WIDTH], count: [EMPTY_SLOT; WIDTH] };
+
+/// `node` as the shader reads it, its interior slots linked from `node_base` on and its leaf
+/// slots from `record_base` on, empty slots marked.
+fn gpu_node(node: &WideNode<WIDTH>, node_base: u32, record_base: u32) -> GpuNode {
+    let mut gpu = GpuNode { bounds: node.bounds, child: node.child, count: node.count };
+    for i in 0..WIDTH {
+        if !node.is_used(i) {
+            for row in &mut gpu.bounds {
+                row[i] = 0.0;
+            }
+            (gpu.child[i], gpu.count[i]) = (0, EMPTY_SLOT);
+        } else if node.count[i] == 0 {
+            gpu.child[i] += node_base;
+        } else {
+            gpu.child[i] += record_base;
+        }
+    }
+    gpu
+}
+
+/// [`tree_records`] for a mesh placed many times: its triangles (never masked, never
+/// emitting: such meshes are written out instead) numbered from `first_number` on.
+fn copied_mesh_records(
+    mesh: &CopiedMeshView,
+    first_number: u32,
+    (node_base, record_base): (u32, u32),
+    packed: &mut Packed,
+) {
+    packed.prims.par_extend(mesh.wide.prim_indices.par_iter().map(|&p| {
+        if p == PAD {
+            return GpuPrim::zeroed();
+        }
+        let [v0, v1, v2] = mesh.triangles[p as usize];
+        let [v0, e1, e2] = [v0, v1 - v0, v2 - v0];
+        let material = f32::from_bits(mesh.triangle_material[p as usize]);
+        let number = f32::from_bits(first_number + p);
+        GpuPrim { a: [v0.x, v0.y, v0.z, material], b: [e1.x, e1.y, e1.z, number], c: [e2.x, e2.y, e2.z, 0.0] }
+    }));
+    packed.nodes.par_extend(mesh.wide.nodes.par_iter().map(|node| gpu_node(node, node_base, record_base)));
+    if mesh.wide.nodes.is_empty() {
+        packed.nodes.push(EMPTY_ROOT);
     }
 }
 
@@ -500,9 +647,6 @@ fn material_record(m: &Material) -> GpuMaterial {
 /// What the kernels do not trace yet.
 fn check_supported(geometry: &Geometry) -> Result<(), GpuError> {
     let unsupported = |what: String| Err(GpuError::Unsupported(what));
-    if geometry.copy_count() > 0 {
-        return unsupported("meshes placed many times (flatten them first)".into());
-    }
     if geometry.triangles.len() != geometry.triangle_count() {
         return unsupported("the geometry's triangles were released".into());
     }
@@ -586,13 +730,17 @@ pub(crate) struct Split {
     prims_per_binding: usize,
     node_bindings: usize,
     prim_bindings: usize,
-    /// Parts of a two-level scene (0: one tree over the scene).
+    /// Instances: the parts of a two-level scene and the copies of meshes placed many times
+    /// (0: one tree over the scene).
     instances: usize,
+    /// The top-level tree's root node (with instances).
+    top_root: usize,
 }
 
 impl Split {
-    pub(crate) fn constants(&self) -> [(&'static str, f64); 5] {
+    pub(crate) fn constants(&self) -> [(&'static str, f64); 6] {
         [
+            ("top_root", self.top_root as f64),
             ("nodes_per_binding", self.nodes_per_binding as f64),
             ("prims_per_binding", self.prims_per_binding as f64),
             ("node_bindings", self.node_bindings as f64),
@@ -631,6 +779,7 @@ fn contents<'a>(gpu: &Gpu, packed: &'a Packed) -> Result<([&'a [u8]; BUFFERS], S
         node_bindings: split_into(&mut data, NODE_BINDINGS, &packed.nodes, nodes_per_binding, "the BVH nodes", gpu)?,
         prim_bindings: split_into(&mut data, PRIM_BINDINGS, &packed.prims, prims_per_binding, "the primitives", gpu)?,
         instances: packed.instances.len(),
+        top_root: packed.top.map_or(0, |slot| slot.first_node as usize),
     };
     Ok((data, split))
 }

@@ -237,6 +237,99 @@ fn closest_hits_through_instances_equal_the_cpu() {
     assert_hits_equal("bunny_sky as one moved part", &hits, &geometry, &rays);
 }
 
+/// A scene of meshes placed many times (`instances`): five bunnies (turned, scaled unevenly,
+/// mirrored), three copies of a tetrahedron, a floor and a ball; with `animate`, the
+/// tetrahedra turn.
+fn copies_scene(animate: bool) -> Scene {
+    let bunny = compare_images::shared().join("scenes/bunny/bun_zipper.ply");
+    let turning = if animate { r#", "animate": { "type": "rotate", "degrees_per_second": 90 }"# } else { "" };
+    let text = format!(
+        r#"{{
+  "background": {{ "type": "gradient", "bottom": [1, 1, 1], "top": [0.5, 0.7, 1.0] }},
+  "camera": {{ "position": [0, 0.6, 1.6], "look_at": [0, 0.1, 0], "vfov": 50 }},
+  "materials": {{
+    "clay": {{ "type": "lambertian", "albedo": [0.8, 0.45, 0.3] }},
+    "steel": {{ "type": "metal", "albedo": [0.8, 0.8, 0.9], "fuzz": 0.05 }},
+    "floor": {{ "type": "lambertian", "albedo": 0.6 }}
+  }},
+  "objects": [
+    {{ "type": "quad", "Q": [-2, -0.03, 1], "u": [4, 0, 0], "v": [0, 0, -3], "material": "floor" }},
+    {{ "type": "sphere", "center": [0.45, 0.12, -0.4], "radius": 0.15, "material": "steel" }},
+    {{ "type": "mesh", "file": "{}", "material": "clay", "instances": [
+      {{ "scale": 2, "translate": [0, -0.1, 0] }},
+      {{ "scale": [2.5, 1.5, 2], "rotate": [0, 1, 0, 60], "translate": [-0.5, -0.08, -0.3] }},
+      {{ "scale": [-2, 2, 2], "translate": [0.5, -0.1, 0] }},
+      {{ "scale": 3, "rotate": [[1, 0, 0, 20], [0, 1, 0, -40]], "translate": [0.1, -0.05, -0.8] }},
+      {{ "scale": 1.2, "translate": [-0.3, -0.05, 0.35] }}
+    ] }},
+    {{ "type": "triangles", "material": "steel",
+       "vertices": [[0, 0, 0], [0.2, 0, 0], [0.1, 0.25, 0.05], [0.1, 0, 0.18]],
+       "faces": [[0, 1, 2], [1, 3, 2], [3, 0, 2], [0, 3, 1]],
+       "instances": [{{ "translate": [-0.7, -0.03, 0.1] }}, {{ "rotate": [0, 0, 1, 30], "translate": [0.7, 0, 0.2] }},
+                     {{ "scale": [1, -1.5, 1], "translate": [0, 0.45, -0.2] }}]{} }}
+  ]
+}}"#,
+        bunny.display(),
+        turning
+    );
+    let scene = parse_scene(&text, Path::new("copies.json")).unwrap();
+    assert_eq!(scene.instanced.len(), 2, "two meshes placed many times");
+    scene
+}
+
+/// Through the copies of meshes placed many times (two meshes, eight copies under the
+/// top-level tree, mirrored ones among them), with the scene in one tree and cut into parts,
+/// the GPU's closest hits are the CPU's.
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn closest_hits_through_copies_equal_the_cpu() {
+    let gpu = gpu();
+    let scene = copies_scene(false);
+    let mut geometry = built(&scene, &Builder::default());
+    assert_eq!(geometry.copy_count(), 8);
+    let rays = probe_rays(&scene, 50_000);
+    for layout in ["one tree", "two parts, one moved"] {
+        if layout != "one tree" {
+            let n = geometry.prim_count() as u32;
+            geometry.split(vec![vec![0, 1], (2..n).collect()], &Builder::default());
+            geometry.place(&[(1, glam::Affine3A::from_translation(Vec3::new(0.0, 0.05, 0.1)))]);
+        }
+        let uploaded = GpuScene::upload(gpu, &scene, &geometry, None).unwrap();
+        let hits = HitQueries::new(gpu, &uploaded).closest_hits(gpu, &uploaded, &rays).unwrap();
+        assert_hits_equal(&format!("copies, {layout}"), &hits, &geometry, &rays);
+    }
+}
+
+/// Frames through copies of meshes placed many times ([`copies_scene`]) are the CPU's, pixel
+/// by pixel.
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn frames_through_copies_equal_the_cpu() {
+    let gpu = gpu();
+    let scene = copies_scene(false);
+    let geometry = built(&scene, &Builder::default());
+    let uploaded = GpuScene::upload(gpu, &scene, &geometry, None).unwrap();
+    let view = scene.view(None).unwrap();
+    let settings = phr_render::scene::RenderSettings { width: 96, height: 80, max_depth: 6, ..scene.settings };
+    let camera = Camera::new(&view, settings.width, settings.height);
+    let cpu = Renderer::new(&scene, &geometry, &view, &settings, None).with_seed(99);
+    let mut tracer = GpuTracer::new(gpu, &uploaded, &camera, 96, 80, settings.max_depth, 99).unwrap();
+    tracer.render(&uploaded, 3..4);
+    assert_alike(&cpu.render_frame(3).0, &tracer.film().unwrap().mean(), 100, "copies");
+}
+
+/// The number the GPU gives `hit`'s primitive: a copy's triangle is numbered after the
+/// scene's primitives, mesh after mesh (`Packed`'s layout), the others keep theirs.
+fn gpu_number(geometry: &Geometry, hit: &phr_render::geometry::Hit) -> u32 {
+    use phr_render::geometry::COPY;
+    if hit.part & COPY == 0 {
+        return hit.prim;
+    }
+    let (mesh, _, _) = geometry.copy_placement((hit.part & !COPY) as usize).unwrap();
+    let before: usize = (0..mesh).map(|m| geometry.copied_mesh(m).triangles.len()).sum();
+    (geometry.prim_count() + before) as u32 + hit.prim
+}
+
 /// The GPU's closest hits `hits` of `rays` are the CPU's ([`closest_hits_equal_the_cpu`]).
 fn assert_hits_equal(name: &str, hits: &[Option<phr_gpu::GpuHit>], geometry: &Geometry, rays: &[Ray]) {
     let (mut same, mut ties, mut found) = (0, 0, 0);
@@ -245,7 +338,7 @@ fn assert_hits_equal(name: &str, hits: &[Option<phr_gpu::GpuHit>], geometry: &Ge
         found += usize::from(cpu_hit.is_some());
         match (cpu_hit, gpu_hit) {
             (None, None) => same += 1,
-            (Some(c), Some(g)) if c.prim == g.prim => {
+            (Some(c), Some(g)) if gpu_number(geometry, &c) == g.prim => {
                 assert!(
                     (c.t - g.t).abs() <= 1e-5 * c.t,
                     "{name}: prim {} at t {} (CPU) and {} (GPU)",
@@ -474,16 +567,19 @@ fn assert_alike(cpu: &[Vec3], gpu: &[Vec3], min_lit: usize, what: &str) {
 
 /// The viewer's pipeline with the GPU tracing its frames ([`GpuFrames`]) shows the CPU's
 /// frames: while the scene moves (what moved uploaded), while it is still (accumulating),
-/// after the camera moved and after light sampling was switched. Two scenes: a deforming
-/// floor and lamp (`moving_light.json`), and parts that move rigidly around a deforming one
-/// ([`moving_parts`]).
+/// after the camera moved and after light sampling was switched. Three scenes: a deforming
+/// floor and lamp (`moving_light.json`), parts that move rigidly around a deforming one
+/// ([`moving_parts`]), and turning copies of a mesh placed many times ([`copies_scene`]).
 #[test]
 #[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
 fn the_viewers_frames_on_the_gpu_are_the_cpus() {
-    let moving_light = include_str!("../../phr-render/tests/support/moving_light.json");
+    let text = |text: String| move || parse_scene(&text, Path::new("moving.json")).unwrap();
+    let moving_light = text(include_str!("../../phr-render/tests/support/moving_light.json").into());
+    let moving_parts = text(moving_parts());
     for pipeline in PipelineKind::ALL {
-        viewer_frames_alike(moving_light, pipeline, false);
-        viewer_frames_alike(&moving_parts(), pipeline, true);
+        viewer_frames_alike(&moving_light, pipeline, false);
+        viewer_frames_alike(&moving_parts, pipeline, true);
+        viewer_frames_alike(&|| copies_scene(true), pipeline, true);
     }
 }
 
@@ -544,9 +640,9 @@ fn moving_parts() -> String {
 /// `small_changes` (most of the scene static or rigid) and the scene cut into parts, a moving
 /// frame writes only what changed: less than a third of what a whole upload writes, once the
 /// deforming part's tree has room to change in place.
-fn viewer_frames_alike(scene_text: &str, pipeline: PipelineKind, small_changes: bool) {
+fn viewer_frames_alike(make_scene: &dyn Fn() -> Scene, pipeline: PipelineKind, small_changes: bool) {
     let make = || {
-        let scene = parse_scene(scene_text, Path::new("moving.json")).unwrap();
+        let scene = make_scene();
         let camera = scene.view(None).unwrap();
         let settings = PipelineSettings {
             builder: Builder::PHR_FAST,

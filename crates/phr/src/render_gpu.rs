@@ -29,7 +29,7 @@ mod imp {
 #[cfg(feature = "gpu")]
 mod imp {
     use super::*;
-    use crate::render::{describe_build, finish, Integrator};
+    use crate::render::{describe_build, describe_copies, finish, Integrator};
     use phr_gpu::{Gpu, GpuScene, GpuTracer};
     use phr_render::camera::Camera;
     use phr_render::geometry::Geometry;
@@ -41,16 +41,16 @@ mod imp {
     /// its single-precision sums into the film's double-precision ones).
     const CHUNK: u32 = 16;
 
-    pub fn run(args: &RenderArgs, mut scene: Scene, view: &CameraDesc, settings: &RenderSettings) -> Result<()> {
+    pub fn run(args: &RenderArgs, scene: Scene, view: &CameraDesc, settings: &RenderSettings) -> Result<()> {
         let RenderSettings { width, height, spp, max_depth } = *settings;
         let gpu = Gpu::new()?;
-        // The GPU traces one tree over every triangle where it is.
-        scene.flatten_instanced();
         let mut geometry = Geometry::new(&scene);
         let builder = args.builder.with_branching(args.branching).map_err(anyhow::Error::msg)?;
         let report = geometry.build_report(&builder);
-        let build = describe_build(&builder, &report);
+        let mut build = describe_build(&builder, &report);
         geometry.set_bvh(report.bvh);
+        // Meshes placed many times: one tree each, their copies instances of it.
+        build += &describe_copies(&scene, geometry.build_copies(&builder));
 
         let start = Instant::now();
         let lights = (args.integrator == Integrator::Path)

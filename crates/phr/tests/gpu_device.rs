@@ -93,6 +93,33 @@ fn the_viewer_traces_its_frames_on_the_gpu() {
     }
 }
 
+/// `phr view --device gpu` on 1,000 turning copies of the bunny: the copies go up as one
+/// bunny's tree and 1,000 instances (not 69M flattened triangles), and a moving frame writes
+/// only the instances and the tree over them.
+#[cfg(feature = "gpu")]
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn the_gpu_traces_copies_of_a_mesh_placed_many_times() {
+    use common::Table;
+    let dir = TempDir::new("gpu-copies");
+    let scene = common::repo_path("scenes/instances/bunnies_1000_moving.json");
+    let mut args = vec!["--threads", "2", "view", scene.to_str().unwrap(), "--headless", "--device", "gpu"];
+    args.extend(["--frames", "3", "--width", "48", "--height", "32", "--png-every", "0", "--out", "copies"]);
+    let out = phr_within(&dir.0, &args, Duration::from_secs(300));
+    assert_eq!(out.code, Some(0), "{}", out.stderr);
+    assert!(out.stdout.contains("colour frames traced on the gpu"), "{}", out.stdout);
+    let csv = Table::read(&dir.join("copies/frames.csv"));
+    assert_eq!(csv.str(0, "device"), "gpu");
+    let whole = csv.num(0, "upload_bytes");
+    // One bunny (69,451 triangles) with its tree, and the floor: not 69M triangles.
+    assert!(whole > 2e6 && whole < 2e7, "{whole} bytes uploaded");
+    for row in 1..3 {
+        let bytes = csv.num(row, "upload_bytes");
+        // 1,000 instances of 208 bytes and the tree over them.
+        assert!(bytes > 208e3 && bytes < 1e6, "row {row}: {bytes} bytes");
+    }
+}
+
 /// A wave through the bunny, four frames on the GPU: every frame rebuilt, uploaded and traced,
 /// each frame's image a PNG; every frame traces at least its camera rays.
 #[cfg(feature = "gpu")]

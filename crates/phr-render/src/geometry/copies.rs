@@ -9,11 +9,12 @@
 //! [`COPY`] set in [`Hit::part`], the copy's number in the other bits, and its triangle's
 //! number within its mesh in [`Hit::prim`].
 
-use super::{Hit, Part, TRIANGLE_OFFSET};
+use super::{Hit, Part, TRIANGLE_OFFSET, WIDTH};
 use crate::scene::Scene;
 use glam::{Affine3A, Vec2, Vec3};
 use phr_bvh::instance::{Instance, TopLevel};
 use phr_bvh::triangle::triangle_bounds;
+use phr_bvh::wide::WideBvh;
 use phr_bvh::{Aabb, Builder, Ray};
 
 /// The bit of [`Hit::part`] that marks a copy's hit.
@@ -27,6 +28,16 @@ struct CopiedMesh {
     triangle_uv: Vec<[Vec2; 3]>,
     /// Its wide tree and packed triangles, in object space (built by [`Copies::build`]).
     part: Part,
+}
+
+/// A mesh placed many times, as devices that trace it themselves read it: its wide tree (leaf
+/// entries number its triangles from 0), and its triangles, their materials and texture
+/// coordinates (empty: none), in its object space.
+pub struct CopiedMeshView<'a> {
+    pub wide: &'a WideBvh<WIDTH>,
+    pub triangles: &'a [[Vec3; 3]],
+    pub triangle_material: &'a [u32],
+    pub triangle_uv: &'a [[Vec2; 3]],
 }
 
 /// Every mesh placed many times, and the top-level tree over their copies.
@@ -133,6 +144,33 @@ impl Copies {
         } else {
             self.top.closest_hit(ray, search)
         }
+    }
+
+    /// Whether the meshes' trees and the top level are built ([`Copies::build`]).
+    pub fn is_built(&self) -> bool {
+        self.placements.is_empty()
+    }
+
+    pub fn mesh_count(&self) -> usize {
+        self.meshes.len()
+    }
+
+    /// Mesh `m` as [`CopiedMeshView`] shows it.
+    pub fn mesh(&self, m: usize) -> CopiedMeshView<'_> {
+        let mesh = &self.meshes[m];
+        CopiedMeshView {
+            wide: &mesh.part.wide,
+            triangles: &mesh.triangles,
+            triangle_material: &mesh.triangle_material,
+            triangle_uv: &mesh.triangle_uv,
+        }
+    }
+
+    /// Copy `copy`'s mesh, placement and box in the world (once built).
+    pub fn placed(&self, copy: usize) -> (usize, &Instance, Aabb) {
+        let m = self.mesh_of[copy] as usize;
+        let instance = &self.top.instances()[copy];
+        (m, instance, self.meshes[m].part.bounds_placed(instance))
     }
 
     /// Position, unit normal, material and relative offset of copy `copy`'s hit, in the

@@ -46,7 +46,7 @@ use phr_bvh::{closest_hit_counted, Aabb, Builder, Bvh, PackedTriangles, Ray, Tra
 use std::borrow::Cow;
 
 use copies::Copies;
-pub use copies::COPY;
+pub use copies::{CopiedMeshView, COPY};
 
 /// A closest hit: distance, primitive, and barycentrics for triangles.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -390,6 +390,22 @@ impl Geometry {
     /// Number of copies of meshes placed many times.
     pub fn copy_count(&self) -> usize {
         self.copies.len()
+    }
+
+    /// Number of meshes placed many times (each traced through its copies).
+    pub fn copied_mesh_count(&self) -> usize {
+        self.copies.mesh_count()
+    }
+
+    /// Mesh `m` of those placed many times: its tree and triangles in its object space.
+    pub fn copied_mesh(&self, m: usize) -> CopiedMeshView<'_> {
+        self.copies.mesh(m)
+    }
+
+    /// Copy `copy`: its mesh, its placement and its box in the world; `None` until the
+    /// copies are built ([`Geometry::build_copies`]).
+    pub fn copy_placement(&self, copy: usize) -> Option<(usize, &Instance, Aabb)> {
+        self.copies.is_built().then(|| self.copies.placed(copy))
     }
 
     /// A BVH over the whole scene by `builder`, with its timings, from the current boxes (and

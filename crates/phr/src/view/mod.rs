@@ -83,7 +83,7 @@ pub struct ViewArgs {
     #[arg(long, value_enum, default_value = "atrous")]
     denoiser: Denoiser,
     /// `gpu` (a `phr` built with `--features gpu`): the GPU traces the colour frames, with any
-    /// pipeline (meshes placed many times are flattened); the CPU poses, builds the trees,
+    /// pipeline, meshes placed many times as copies of one tree, as on the CPU; the CPU poses, builds the trees,
     /// accumulates and denoises, and traces the other modes.
     #[arg(long, value_enum, default_value = "cpu")]
     device: Device,
@@ -187,11 +187,7 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
     }
     let on_gpu = args.device == Device::Gpu;
     let pipeline_kind = args.pipeline.unwrap_or(PipelineArg::Async);
-    let mut scene = open_scene(&args.scene)?;
-    if on_gpu {
-        // The GPU traces parts placed by instances, not meshes placed many times.
-        scene.flatten_instanced();
-    }
+    let scene = open_scene(&args.scene)?;
     let camera = scene
         .view(args.view.as_deref())
         .with_context(|| format!("no view {:?} (the scene has: {})", args.view, scene.view_names().join(", ")))?;
