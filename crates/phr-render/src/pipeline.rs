@@ -5,8 +5,9 @@
 //!
 //! How the trees follow the motion is the [`PipelineKind`]:
 //! - [`PipelineKind::Thesis`], thesis section 5.3: one tree over the whole scene; every moving
-//!   frame moves the vertices, refits the auxiliary LBVH over all primitives, rebuilds the
-//!   render BVH with PHR and collapses it.
+//!   frame moves the vertices, refits the auxiliary LBVH over all primitives and rebuilds the
+//!   render BVH with PHR, straight into the 8-wide layout the renderer traces (other
+//!   builders' binary trees are collapsed into it).
 //! - [`PipelineKind::TwoLevel`]: the static primitives, the deforming ones, and each rigidly
 //!   moving object get trees of their own ([`Geometry::split`]), built once; a moving frame
 //!   moves the rigid objects by their transforms and the top-level tree over them, and refits
@@ -146,8 +147,8 @@ pub struct FrameReport {
     /// tree and the top-level tree).
     pub build_ms: f64,
     /// Collapsing it to the wide BVH the renderer traces and packing the triangles in its
-    /// leaf order ([`Geometry::set_bvh`]); two-level with PHR, which builds the wide tree
-    /// directly, the packing alone ([`Geometry::set_part_wide`]).
+    /// leaf order ([`Geometry::set_bvh`]); with PHR, which builds the wide tree directly, the
+    /// packing alone ([`Geometry::set_part_wide`]).
     pub wide_ms: f64,
     /// Tracing the frame's samples (on another device: uploading what moved, tracing, reading
     /// the samples back).
@@ -163,8 +164,9 @@ pub struct FrameReport {
     pub frame_ms: f64,
     pub rays: u64,
     /// SAH cost (unit constants) of the current render tree: thesis pipeline, the builder's
-    /// tree over the whole scene (the thesis's measure); two-level, the 8-wide tree traced
-    /// for the deforming part ([`phr_bvh::wide_sah_cost`], lower than a binary tree's), 0
+    /// tree over the whole scene (PHR's straight into the 8-wide layout:
+    /// [`phr_bvh::wide_sah_cost`], lower than a binary tree's; the others' binary trees, the
+    /// thesis's measure); two-level, the 8-wide tree traced for the deforming part, 0
     /// without one.
     pub sah_cost: f64,
     /// PHR's Σ|cut| of the last build (0 for other builders).
@@ -524,11 +526,15 @@ impl FramePipeline {
                     None => self.dynamic.insert(DynamicBvh::new(boxes, options)),
                 };
                 let created_ms = ms_since(refit_start);
-                let (bvh, timings) = dynamic.update(boxes);
+                // Straight to the wide tree the renderer traces: no binary tree, no collapse.
+                let boxes = std::mem::take(&mut self.geometry.boxes);
+                let (timings, wide_time) = self.geometry.set_part_wide(0, |wide| dynamic.update_wide(&boxes, wide));
+                self.geometry.boxes = boxes;
                 report.refit_ms = created_ms + timings.refit.as_secs_f64() * 1e3;
                 report.build_ms = timings.build.as_secs_f64() * 1e3;
-                report.wide_ms = self.geometry.set_bvh(bvh).as_secs_f64() * 1e3;
+                report.wide_ms = wide_time.as_secs_f64() * 1e3;
                 self.build_cost = timings.build_cost;
+                self.sah = wide_sah_cost(self.geometry.wide_bvh(), SahConstants::UNIT);
             }
             builder => {
                 let build_start = Instant::now();
@@ -536,11 +542,11 @@ impl FramePipeline {
                 report.build_ms = ms_since(build_start);
                 report.wide_ms = self.geometry.set_bvh(bvh).as_secs_f64() * 1e3;
                 self.build_cost = 0;
+                self.sah = sah_cost(self.geometry.bvh(), SahConstants::UNIT);
             }
         }
         // The meshes placed many times: built once, the first time.
         report.build_ms += self.geometry.build_copies(&self.settings.builder).as_secs_f64() * 1e3;
-        self.sah = sah_cost(self.geometry.bvh(), SahConstants::UNIT);
         self.tree_dirty = false;
     }
 

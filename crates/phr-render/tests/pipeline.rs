@@ -83,14 +83,22 @@ fn brute_force(p: &FramePipeline, ray: &Ray) -> Option<(f32, u32)> {
     best
 }
 
-/// The pipeline's geometry is the posed scene's: fresh boxes, a valid tree, exact hits.
+/// The pipeline's geometry is the posed scene's: fresh boxes, a valid tree (PHR's straight into
+/// the wide layout, the others' binary ones), exact hits.
 fn check_geometry(p: &FramePipeline, builder: Builder, frame: usize) {
     let g = p.geometry();
     let what = format!("{builder}, frame {frame}");
     for (i, t) in g.triangles.iter().enumerate() {
         assert_eq!(g.boxes[i], triangle_bounds(t[0], t[1], t[2]), "{what}: stale box of triangle {i}");
     }
-    validate(g.bvh(), &g.boxes, builder.max_leaf_size()).unwrap_or_else(|e| panic!("{what}: {e}"));
+    match builder {
+        Builder::Phr(_) => {
+            assert!(g.bvh().nodes.is_empty(), "{what}: PHR builds no binary tree");
+            g.wide_bvh().validate(&g.boxes)
+        }
+        _ => validate(g.bvh(), &g.boxes, builder.max_leaf_size()),
+    }
+    .unwrap_or_else(|e| panic!("{what}: {e}"));
     let bounds = g.boxes.iter().fold(phr_bvh::Aabb::EMPTY, |b, x| b.union(*x));
     for (i, ray) in rng_rays(bounds, 300, frame as u64 + 1).iter().enumerate() {
         let got = g.intersect(ray).map(|h| (h.t, h.prim));
