@@ -1,9 +1,11 @@
 //! `phr animate`: the dynamic-scene pipeline of thesis section 5.3, frame after frame, through
 //! [`FramePipeline`] (the viewer's frame loop, so both report the same frame time): pose the
-//! moving objects, refit the auxiliary LBVH, rebuild the render BVH with PHR, collapse it to
-//! the wide BVH, render one sample per pixel. The motion is the scene's own animation or one
+//! moving objects, refit the auxiliary LBVH, rebuild the render BVH with PHR (straight into
+//! the wide BVH the renderer traces), render one sample per pixel. The motion is the scene's own animation or one
 //! applied to every mesh. Writes a CSV of per-frame timings (the columns of `phr view
-//! --headless`) and, if asked, the frames as PNG.
+//! --headless`) and, if asked, the frames as PNG. With `--device gpu` the GPU traces the
+//! frames (the viewer's `GpuFrames`: what changed uploaded, timed apart) and the CPU does the
+//! rest, with any pipeline.
 
 use crate::scene_arg::{open_scene, BUILTIN};
 use crate::view::PipelineArg;
@@ -21,7 +23,7 @@ use std::io::Write;
 use std::path::PathBuf;
 
 /// Animation time per frame, in seconds.
-pub(crate) const FRAME_DT: f32 = 1.0 / 30.0;
+const FRAME_DT: f32 = 1.0 / 30.0;
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum Motion {
@@ -64,16 +66,16 @@ pub struct AnimateArgs {
     /// deforming objects' tree rebuilt on a worker thread and refitted meanwhile).
     #[arg(long, value_enum, default_value = "thesis")]
     pub(crate) pipeline: PipelineArg,
-    /// Where to render: `cpu`, or `gpu` (the thesis's pipeline: pose, refit and PHR on the
-    /// CPU, the tree and the moved primitives uploaded, the frame traced on the GPU; build
-    /// with `--features gpu`).
+    /// Where to render: `cpu`, or `gpu` (pose, refit and PHR on the CPU, what changed
+    /// uploaded, the frame traced on the GPU, with any pipeline; build with `--features
+    /// gpu`).
     #[arg(long, value_enum, default_value = "cpu")]
     pub(crate) device: crate::render::Device,
 }
 
-/// What both devices do first: check the builder, make the output folder, open the scene
-/// with its motion and pick the view.
-pub(crate) fn prepare(args: &AnimateArgs) -> Result<(Scene, CameraDesc)> {
+/// Checks the builder, makes the output folder, opens the scene with its motion and picks the
+/// view.
+fn prepare(args: &AnimateArgs) -> Result<(Scene, CameraDesc)> {
     if !matches!(args.builder, Builder::Phr(_)) {
         bail!("animate rebuilds with PHR: use phr-fast, phr-hq or phr:ALPHA,DELTA")
     }
@@ -89,7 +91,6 @@ pub(crate) fn prepare(args: &AnimateArgs) -> Result<(Scene, CameraDesc)> {
     Ok((scene, view))
 }
 
-/// `phr animate` on the CPU (`--device gpu` is `crate::animate_gpu`'s).
 pub fn run(args: &AnimateArgs) -> Result<()> {
     let (scene, view) = prepare(args)?;
     let settings = PipelineSettings {
@@ -103,6 +104,9 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
         denoise: None,
     };
     let mut pipeline = FramePipeline::new(scene, settings, view);
+    if args.device == crate::render::Device::Gpu {
+        pipeline = crate::view::attach_gpu(pipeline, "animate")?;
+    }
     let progress = ProgressBar::new(args.frames as u64);
     progress.set_style(
         ProgressStyle::with_template("{spinner} animating [{bar:30}] {pos}/{len} frames {msg}")
@@ -163,13 +167,24 @@ fn print_summary(args: &AnimateArgs, triangles: usize, rows: &[FrameReport]) {
         v.sort_by(f64::total_cmp);
         v.get(v.len() / 2).copied().unwrap_or(0.0)
     };
+    // On another device the render includes moving what changed there.
+    let device = rows.first().map_or("cpu", |r| r.device);
+    let upload = match device {
+        "cpu" => String::new(),
+        _ => format!(
+            " (upload {:.2} ms, {:.1} KiB)",
+            median(|r| r.upload_ms),
+            median(|r| r.upload_bytes as f64) / 1024.0
+        ),
+    };
     println!(
-        "{} frames of {} ({} triangles, {}x{}, 1 spp): median refit {:.2} ms, {} build {:.2} ms, wide BVH {:.2} ms, render {:.2} ms, frame {:.2} ms ({:.1} fps)",
+        "{} frames of {} ({} triangles, {}x{}, 1 spp): median pose {:.2} ms, refit {:.2} ms, {} build {:.2} ms, wide BVH {:.2} ms, render {:.2} ms on the {device}{upload}, frame {:.2} ms ({:.1} fps)",
         rows.len(),
         args.scene,
         triangles,
         args.width,
         args.height,
+        median(|r| r.pose_ms),
         median(|r| r.refit_ms),
         args.builder,
         median(|r| r.build_ms),

@@ -2,7 +2,6 @@
 //! work itself lives in `phr-bvh` and `phr-render`.
 
 mod animate;
-mod animate_gpu;
 mod bench;
 mod bench_build;
 mod bench_cut_cost;
@@ -107,7 +106,6 @@ fn main() -> ExitCode {
         Some(Command::BenchQuality(args)) => bench_quality::run(&args),
         Some(Command::BenchRays(args)) => bench_rays::run(&args),
         Some(Command::BenchCutCost(args)) => bench_cut_cost::run(&args),
-        Some(Command::Animate(args)) if args.device == render::Device::Gpu => animate_gpu::run(&args),
         Some(Command::Animate(args)) => animate::run(&args),
         Some(Command::View(args)) => view::run(&args),
         Some(Command::Tune(args)) => tune::run(&args),

@@ -42,16 +42,6 @@ fn without_the_feature_the_gpu_is_an_error_that_says_how_to_get_it() {
     assert!(!dir.join("view/frames.csv").exists(), "no output");
 }
 
-#[test]
-fn the_gpu_animates_with_the_thesis_s_pipeline_only() {
-    let dir = TempDir::new("gpu-animate-pipeline");
-    let args = ["animate", "--device", "gpu", "--pipeline", "async", "--frames", "2", "--out", "anim"];
-    let out = phr_within(&dir.0, &args, Duration::from_secs(60));
-    assert_ne!(out.code, Some(0));
-    assert!(out.stderr.contains("--pipeline thesis"), "{}", out.stderr);
-    assert!(!dir.join("anim/frames.csv").exists(), "no output");
-}
-
 /// `phr view --device gpu`, headless: the moving bunny of a scene file, with the viewer's
 /// light sampling and denoiser, its colour frames traced on the GPU (the CSV's `device`), the
 /// scene's moved parts' instances uploaded when it moves and nothing when it is paused, the
@@ -120,29 +110,48 @@ fn the_gpu_traces_copies_of_a_mesh_placed_many_times() {
     }
 }
 
-/// A wave through the bunny, four frames on the GPU: every frame rebuilt, uploaded and traced,
-/// each frame's image a PNG; every frame traces at least its camera rays.
+/// A wave through the bunny, then the bunny spinning, four frames each on the GPU with each
+/// pipeline: every frame moved, uploaded and traced, each frame's image a PNG; every frame
+/// traces at least its camera rays. Spinning with the two-level pipelines moves the bunny's
+/// instance only: those frames write a few hundred bytes.
 #[cfg(feature = "gpu")]
 #[test]
 #[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
-fn the_gpu_animates_a_deforming_mesh() {
+fn the_gpu_animates_with_every_pipeline() {
     use common::Table;
     let dir = TempDir::new("gpu-animate");
-    let args = ["--threads", "2", "animate", "bunny", "--motion", "wave", "--frames", "4", "--device", "gpu"];
-    let mut args = args.to_vec();
-    args.extend(["--width", "40", "--height", "30", "--png", "--out", "anim"]);
-    let out = phr_within(&dir.0, &args, Duration::from_secs(300));
-    assert_eq!(out.code, Some(0), "{}", out.stderr);
-    assert!(out.stdout.contains("upload") && out.stdout.contains("4 frames of bunny"), "{}", out.stdout);
-    let csv = Table::read(&dir.join("anim/frames.csv"));
-    assert_eq!(csv.rows.len(), 4);
-    for row in 0..4 {
-        for column in ["pose_ms", "refit_ms", "build_ms", "pack_ms", "upload_ms", "render_ms"] {
-            assert!(csv.num(row, column) >= 0.0, "{column}");
+    for pipeline in ["thesis", "two-level", "async"] {
+        for motion in ["wave", "spin"] {
+            let mut args = vec!["--threads", "2", "animate", "bunny", "--motion", motion, "--frames", "4"];
+            args.extend(["--device", "gpu", "--pipeline", pipeline]);
+            args.extend(["--width", "40", "--height", "30", "--png", "--out", "anim"]);
+            let what = format!("{pipeline}, {motion}");
+            let out = phr_within(&dir.0, &args, Duration::from_secs(300));
+            assert_eq!(out.code, Some(0), "{what}: {}", out.stderr);
+            assert!(
+                out.stdout.contains("on the gpu (upload") && out.stdout.contains("4 frames of bunny"),
+                "{}",
+                out.stdout
+            );
+            let csv = Table::read(&dir.join("anim/frames.csv"));
+            assert_eq!(csv.rows.len(), 4);
+            for row in 0..4 {
+                assert_eq!(csv.str(row, "device"), "gpu", "{what}");
+                for column in ["pose_ms", "refit_ms", "build_ms", "wide_ms", "upload_ms", "render_ms"] {
+                    assert!(csv.num(row, column) >= 0.0, "{what}: {column}");
+                }
+                assert!(csv.num(row, "frame_ms") >= csv.num(row, "render_ms") + csv.num(row, "build_ms"));
+                assert!(csv.num(row, "rays") >= 40.0 * 30.0, "{what}, row {row}: {} rays", csv.num(row, "rays"));
+                assert!(dir.join(&format!("anim/frame{row:05}.png")).is_file());
+                let bytes = csv.num(row, "upload_bytes");
+                if row > 0 && motion == "spin" && pipeline != "thesis" {
+                    assert!(bytes > 0.0 && bytes < 4096.0, "{what}, row {row}: {bytes} bytes");
+                } else {
+                    // The bunny's triangles and tree (69,451 triangles).
+                    assert!(bytes > 3e6, "{what}, row {row}: {bytes} bytes");
+                }
+            }
         }
-        assert!(csv.num(row, "frame_ms") >= csv.num(row, "render_ms") + csv.num(row, "build_ms"));
-        assert!(csv.num(row, "rays") >= 40.0 * 30.0, "row {row}: {} rays", csv.num(row, "rays"));
-        assert!(dir.join(&format!("anim/frame{row:05}.png")).is_file());
     }
 }
 

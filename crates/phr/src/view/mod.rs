@@ -4,6 +4,7 @@
 
 mod camera_control;
 mod device;
+pub(crate) use device::attach_gpu;
 mod headless;
 mod window;
 
@@ -216,7 +217,7 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
     };
     let mut pipeline = FramePipeline::new(scene, settings, camera);
     if on_gpu {
-        pipeline = device::attach_gpu(pipeline)?;
+        pipeline = device::attach_gpu(pipeline, "view")?;
     }
     pipeline.set_auto(auto);
     pipeline.playing = !args.paused;
