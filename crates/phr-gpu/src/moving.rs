@@ -61,9 +61,9 @@ impl Uploaded {
             // Other parts: none is known to change.
             self.changing = vec![false; g.part_count()];
         }
-        let changing = std::mem::take(&mut self.changing);
-        let packed = Packed::moved_parts(job.scene, g, job.lights, |k| changing[k])?;
+        let packed = Packed::moved_parts(job.scene, g, job.lights, |k| self.changing[k])?;
         scene.update(gpu, &packed)?;
+        let changing = std::mem::take(&mut self.changing);
         *self = Self::new(job, &packed, changing);
         Ok(())
     }

@@ -17,7 +17,8 @@ pub struct GpuHit {
     pub t: f32,
     pub u: f32,
     pub v: f32,
-    /// The primitive's number in the scene (triangles first, then spheres).
+    /// The primitive's number in the scene (triangles first, then spheres, then the
+    /// triangles of the meshes placed many times, mesh after mesh, each mesh's once).
     pub prim: u32,
 }
 

@@ -19,6 +19,11 @@ use rayon::prelude::*;
 pub const STACK: usize = 128;
 /// The same for the top-level tree over the instances (`TOP_STACK`).
 pub const TOP_STACK: usize = 64;
+/// Up to this many instances the kernels search one after the other, without a top-level
+/// tree (none is uploaded): its walk (a node, its children ordered, a stack in private
+/// memory) cost lavapipe 4-17 % of the frame on the dynamic scenes, whose few parts the
+/// instances' boxes cull as well.
+pub const DIRECT_INSTANCES: usize = 8;
 
 /// The WGSL every kernel starts with.
 pub(crate) const COMMON_WGSL: &str = include_str!("shaders/common.wgsl");
@@ -147,7 +152,8 @@ pub struct Packed {
     /// The root node of each mesh placed many times (the copies' instances follow the
     /// parts').
     pub mesh_roots: Vec<u32>,
-    /// Where the top-level tree over the instances lies (`None`: no instances).
+    /// Where the top-level tree over the instances lies (`None`: none needed, for no more
+    /// than [`DIRECT_INSTANCES`]).
     pub top: Option<TreeSlot>,
     /// Every colour texture's texels (sRGB, `r | g << 8 | b << 16`), one after the other, and
     /// each texture's first texel, width and height.
@@ -300,7 +306,8 @@ impl Packed {
         }
         packed.emitter_of = emitters.of_prim;
         packed.add_copies(geometry)?;
-        if instanced {
+        // (Up to DIRECT_INSTANCES the kernels search the instances one after the other.)
+        if packed.instances.len() > DIRECT_INSTANCES {
             let top = top_records(&packed.instances, packed.nodes.len() as u32)?;
             packed.top = Some(packed.add_tree(true, |packed, _| packed.nodes.extend(top)));
         }
@@ -733,7 +740,7 @@ pub(crate) struct Split {
     /// Instances: the parts of a two-level scene and the copies of meshes placed many times
     /// (0: one tree over the scene).
     instances: usize,
-    /// The top-level tree's root node (with instances).
+    /// The top-level tree's root node (0: none, the instances searched one after the other).
     top_root: usize,
 }
 

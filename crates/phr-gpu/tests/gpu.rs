@@ -238,10 +238,12 @@ fn closest_hits_through_instances_equal_the_cpu() {
 }
 
 /// A scene of meshes placed many times (`instances`): five bunnies (turned, scaled unevenly,
-/// mirrored), three copies of a tetrahedron, a floor and a ball; with `animate`, the
-/// tetrahedra turn.
+/// mirrored), three copies of a tetrahedron, two of a textured corner (phr-render's `textured`
+/// reference, its texture read through the copies' texture coordinates), a floor and a
+/// ball; with `animate`, the tetrahedra turn.
 fn copies_scene(animate: bool) -> Scene {
     let bunny = compare_images::shared().join("scenes/bunny/bun_zipper.ply");
+    let textured = reference_paths("textured").0.with_file_name("textured.obj");
     let turning = if animate { r#", "animate": { "type": "rotate", "degrees_per_second": 90 }"# } else { "" };
     let text = format!(
         r#"{{
@@ -266,18 +268,24 @@ fn copies_scene(animate: bool) -> Scene {
        "vertices": [[0, 0, 0], [0.2, 0, 0], [0.1, 0.25, 0.05], [0.1, 0, 0.18]],
        "faces": [[0, 1, 2], [1, 3, 2], [3, 0, 2], [0, 3, 1]],
        "instances": [{{ "translate": [-0.7, -0.03, 0.1] }}, {{ "rotate": [0, 0, 1, 30], "translate": [0.7, 0, 0.2] }},
-                     {{ "scale": [1, -1.5, 1], "translate": [0, 0.45, -0.2] }}]{} }}
+                     {{ "scale": [1, -1.5, 1], "translate": [0, 0.45, -0.2] }}]{} }},
+    {{ "type": "obj_mtl", "file": "{}", "instances": [
+      {{ "scale": 0.3, "rotate": [0, 1, 0, 30], "translate": [-0.75, -0.01, -0.6] }},
+      {{ "scale": [-0.25, 0.3, 0.3], "rotate": [0, 1, 0, -20], "translate": [0.8, -0.01, -0.5] }}
+    ] }}
   ]
 }}"#,
         bunny.display(),
-        turning
+        turning,
+        textured.display()
     );
     let scene = parse_scene(&text, Path::new("copies.json")).unwrap();
-    assert_eq!(scene.instanced.len(), 2, "two meshes placed many times");
+    assert_eq!(scene.instanced.len(), 3, "three meshes placed many times");
+    assert!(scene.material_texture.iter().any(Option::is_some), "a textured copy");
     scene
 }
 
-/// Through the copies of meshes placed many times (two meshes, eight copies under the
+/// Through the copies of meshes placed many times (three meshes, ten copies under the
 /// top-level tree, mirrored ones among them), with the scene in one tree and cut into parts,
 /// the GPU's closest hits are the CPU's.
 #[test]
@@ -286,7 +294,7 @@ fn closest_hits_through_copies_equal_the_cpu() {
     let gpu = gpu();
     let scene = copies_scene(false);
     let mut geometry = built(&scene, &Builder::default());
-    assert_eq!(geometry.copy_count(), 8);
+    assert_eq!(geometry.copy_count(), 10);
     let rays = probe_rays(&scene, 50_000);
     for layout in ["one tree", "two parts, one moved"] {
         if layout != "one tree" {

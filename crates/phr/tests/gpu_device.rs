@@ -124,7 +124,8 @@ fn the_gpu_animates_with_every_pipeline() {
         for motion in ["wave", "spin"] {
             let mut args = vec!["--threads", "2", "animate", "bunny", "--motion", motion, "--frames", "4"];
             args.extend(["--device", "gpu", "--pipeline", pipeline]);
-            args.extend(["--width", "40", "--height", "30", "--png", "--out", "anim"]);
+            let folder = format!("anim-{pipeline}-{motion}");
+            args.extend(["--width", "40", "--height", "30", "--png", "--out", &folder]);
             let what = format!("{pipeline}, {motion}");
             let out = phr_within(&dir.0, &args, Duration::from_secs(300));
             assert_eq!(out.code, Some(0), "{what}: {}", out.stderr);
@@ -133,7 +134,7 @@ fn the_gpu_animates_with_every_pipeline() {
                 "{}",
                 out.stdout
             );
-            let csv = Table::read(&dir.join("anim/frames.csv"));
+            let csv = Table::read(&dir.join(&folder).join("frames.csv"));
             assert_eq!(csv.rows.len(), 4);
             for row in 0..4 {
                 assert_eq!(csv.str(row, "device"), "gpu", "{what}");
@@ -142,7 +143,7 @@ fn the_gpu_animates_with_every_pipeline() {
                 }
                 assert!(csv.num(row, "frame_ms") >= csv.num(row, "render_ms") + csv.num(row, "build_ms"));
                 assert!(csv.num(row, "rays") >= 40.0 * 30.0, "{what}, row {row}: {} rays", csv.num(row, "rays"));
-                assert!(dir.join(&format!("anim/frame{row:05}.png")).is_file());
+                assert!(dir.join(&folder).join(format!("frame{row:05}.png")).is_file());
                 let bytes = csv.num(row, "upload_bytes");
                 if row > 0 && motion == "spin" && pipeline != "thesis" {
                     assert!(bytes > 0.0 && bytes < 4096.0, "{what}, row {row}: {bytes} bytes");

@@ -426,8 +426,10 @@ fn any_hit(ray: Ray) -> bool {
 // The closest hit of `ray`, or with `stop_at_first` the first found: through the one tree, or
 // through every instance (a part, or a copy of a mesh placed many times) whose world box the
 // ray meets before the closest hit so far, in its object space (`Geometry::intersect`; with
-// the tie rule the order of the instances does not matter): one after the other when they
-// are few, else down the top-level tree, nearest first.
+// the tie rule the order of the instances does not matter, but for copies of one mesh, whose
+// triangles share their numbers: a ray through two at exactly one distance may take either,
+// as on the CPU): one after the other when they are few, else down the top-level tree,
+// nearest first.
 fn search(ray: Ray, stop_at_first: bool) -> Hit {
     var best = Hit(F32_MAX, 0.0, 0.0, NO_HIT, NO_HIT, 0u);
     current_part = 0u;
@@ -435,7 +437,7 @@ fn search(ray: Ray, stop_at_first: bool) -> Hit {
         return traverse(ray, stop_at_first, 0u, best);
     }
     var world = ray;
-    if instance_count <= DIRECT_INSTANCES {
+    if top_root == 0u {
         for (var k = 0u; k < instance_count; k++) {
             let inst = instances[k];
             if (inst.flags & INSTANCE_EMPTY) != 0u || box_entry(inst.lo, inst.hi, world) == F32_MAX {
@@ -505,10 +507,6 @@ fn search_instance(k: u32, world: ptr<function, Ray>, stop_at_first: bool, best:
     return stop_at_first;
 }
 
-// Up to this many instances are searched one after the other, without the top-level tree:
-// its walk (a node, its children ordered, a stack in private memory) cost lavapipe 4-17 % of
-// the frame on the dynamic scenes, whose few parts the instances' boxes cull as well.
-const DIRECT_INSTANCES: u32 = 8u;
 
 // Entry distance into the box lo..hi, or F32_MAX (`phr_bvh::Aabb::intersect`).
 fn box_entry(lo: vec3<f32>, hi: vec3<f32>, ray: Ray) -> f32 {
@@ -528,6 +526,8 @@ const TOP_INSTANCE: u32 = 0x80000000u;
 var<private> top_stack: array<u32, TOP_STACK>;
 var<private> top_stack_t: array<f32, TOP_STACK>;
 var<private> top_sp: u32;
+// The top-level tree's root node, 0 when there is none (the first tree starts at node 0):
+// few instances are searched one after the other (`DIRECT_INSTANCES` in `scene.rs` says why).
 override top_root: u32;
 
 fn top_push(t: f32, entry: u32) {

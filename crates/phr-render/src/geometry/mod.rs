@@ -124,9 +124,12 @@ pub struct Geometry {
     /// triangle hit where its material's mask does not cover it is no hit.
     masks: Vec<AlphaMask>,
     material_mask: Vec<Option<u32>>,
-    /// Parts packed so far: the last one's [`Part::generation`].
-    packings: u64,
 }
+
+/// Parts packed so far, by every geometry of the process: the last one's
+/// [`Part::generation`] (so that a new geometry, such as a pipeline switched to another
+/// layout makes, never repeats a number a device has seen).
+static PACKINGS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 /// What replaces the scene-order triangles once they are released: their number, and for
 /// each one the entry of its part's packed triangles that holds it.
@@ -257,7 +260,6 @@ impl Geometry {
             released: None,
             masks: scene.masks.clone(),
             material_mask: if scene.masks.is_empty() { Vec::new() } else { scene.material_mask.clone() },
-            packings: 0,
         };
         g.update_boxes();
         g
@@ -578,8 +580,7 @@ impl Geometry {
         packed.repack(&self.parts[k].wide.prim_indices, self.scene_triangles());
         self.parts[k].packed = packed;
         self.parts[k].entry_tests = self.needs_entry_tests(k);
-        self.packings += 1;
-        self.parts[k].generation = self.packings;
+        self.parts[k].generation = PACKINGS.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
     }
 
     /// Whether part `k` holds spheres or triangles with an alpha mask ([`Part::entry_tests`]).
@@ -679,7 +680,8 @@ impl Geometry {
 
     /// Changes whenever part `k`'s tree or primitives change (a build, a refit, a split),
     /// and only then: a device that keeps the parts uploads again those whose generation
-    /// changed, and only the placement of the others. Never the same for two packings.
+    /// changed, and only the placement of the others. Never the same for two packings, in any
+    /// two geometries of the process.
     pub fn part_generation(&self, k: usize) -> u64 {
         self.parts[k].generation
     }
