@@ -90,7 +90,10 @@ impl AuxTree {
     /// own subtree right after building it, while its pairs are still in the cache.
     fn build_sorted(codes: &[u64], order: &[u32], boxes: &[Aabb]) -> Self {
         let n = codes.len();
-        let mut pairs = vec![AuxPair::EMPTY; n];
+        // Filled on both cores: `vec!` writes the 64 bytes of each of the n pairs (56 MB for
+        // the dragon) on one thread, taking their pages' first-touch faults there too.
+        let mut pairs = Vec::with_capacity(n);
+        (0..n).into_par_iter().map(|_| AuxPair::EMPTY).collect_into_vec(&mut pairs);
         let mut tasks = Vec::new();
         let mut next_pair = 1usize;
         // The top: ranges larger than a task are split here, in order.
