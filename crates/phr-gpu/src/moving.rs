@@ -3,9 +3,10 @@
 //! copies of meshes placed many times), the top-level tree over them and the emitters
 //! (sampled in the world), so only those are written; a deforming part whose tree
 //! was refitted or rebuilt is written into its own slot ([`TreeSlot`]), the other parts'
-//! trees and records stay as they are. The whole scene is laid out again only when the
-//! parts themselves changed (a split, another pipeline) or a part outgrew its slot, and then
-//! with room to grow for every part seen changing.
+//! trees and records stay as they are. The whole scene is laid out again only when there are
+//! other parts (another number of them, instances or not, other copied meshes), the emitters
+//! are other primitives, or a part outgrew its slot, and then with room to grow for every
+//! part seen changing.
 
 use crate::device::{Gpu, GpuError};
 use crate::scene::{is_instanced, top_records, Emitters, GpuScene, Packed, TreeSlot};

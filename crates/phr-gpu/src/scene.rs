@@ -558,11 +558,7 @@ fn copied_mesh_records(
         if p == PAD {
             return GpuPrim::zeroed();
         }
-        let [v0, v1, v2] = mesh.triangles[p as usize];
-        let [v0, e1, e2] = [v0, v1 - v0, v2 - v0];
-        let material = f32::from_bits(mesh.triangle_material[p as usize]);
-        let number = f32::from_bits(first_number + p);
-        GpuPrim { a: [v0.x, v0.y, v0.z, material], b: [e1.x, e1.y, e1.z, number], c: [e2.x, e2.y, e2.z, 0.0] }
+        triangle_record(mesh.triangles[p as usize], mesh.triangle_material[p as usize], first_number + p)
     }));
     packed.nodes.par_extend(mesh.wide.nodes.par_iter().map(|node| gpu_node(node, node_base, record_base)));
     if mesh.wide.nodes.is_empty() {
@@ -600,23 +596,25 @@ fn texture_records(scene: &Scene, geometry: &Geometry) -> (Vec<u32>, Vec<[u32; 4
 }
 
 fn prim_record(geometry: &Geometry, n_tris: usize, p: u32) -> GpuPrim {
-    let number = f32::from_bits(p);
     let i = p as usize;
     if i < n_tris {
-        let [v0, v1, v2] = geometry.triangles[i];
-        // The edges as the CPU computes them (`Geometry::triangle_edges`): the same bits.
-        let [v0, e1, e2] = [v0, v1 - v0, v2 - v0];
-        let material = f32::from_bits(geometry.triangle_material[i]);
-        GpuPrim { a: [v0.x, v0.y, v0.z, material], b: [e1.x, e1.y, e1.z, number], c: [e2.x, e2.y, e2.z, 0.0] }
-    } else {
-        let s = &geometry.spheres[i - n_tris];
-        let c = s.sphere.center;
-        GpuPrim {
-            a: [c.x, c.y, c.z, f32::from_bits(s.material | SPHERE)],
-            b: [s.sphere.radius, 0.0, 0.0, number],
-            c: [0.0; 4],
-        }
+        return triangle_record(geometry.triangles[i], geometry.triangle_material[i], p);
     }
+    let s = &geometry.spheres[i - n_tris];
+    let c = s.sphere.center;
+    GpuPrim {
+        a: [c.x, c.y, c.z, f32::from_bits(s.material | SPHERE)],
+        b: [s.sphere.radius, 0.0, 0.0, f32::from_bits(p)],
+        c: [0.0; 4],
+    }
+}
+
+/// Triangle `[v0, v1, v2]` with its material and number, as `v0` and the edges the CPU
+/// computes (`Geometry::triangle_edges`: the same bits).
+fn triangle_record([v0, v1, v2]: [glam::Vec3; 3], material: u32, number: u32) -> GpuPrim {
+    let [e1, e2] = [v1 - v0, v2 - v0];
+    let (material, number) = (f32::from_bits(material), f32::from_bits(number));
+    GpuPrim { a: [v0.x, v0.y, v0.z, material], b: [e1.x, e1.y, e1.z, number], c: [e2.x, e2.y, e2.z, 0.0] }
 }
 
 /// [`prim_record`] placed in the world (the same for primitives of a part in place).
