@@ -28,6 +28,10 @@ const STORAGE_BUFFERS: u32 = 20;
 /// A device and its queue (a clone is another handle on the same device).
 #[derive(Clone)]
 pub struct Gpu {
+    /// The instance and adapter the device came from (a window drawing with this device
+    /// makes its surface from them).
+    pub instance: wgpu::Instance,
+    pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
@@ -92,7 +96,7 @@ impl Gpu {
         device.on_uncaptured_error(std::sync::Arc::new(move |e: wgpu::Error| on_error(e.to_string())));
         let on_lost = record(&failure);
         device.set_device_lost_callback(move |reason, message| on_lost(format!("device lost ({reason:?}): {message}")));
-        Ok(Self { device, queue, info, max_binding, failure })
+        Ok(Self { instance, adapter, device, queue, info, max_binding, failure })
     }
 
     /// "NAME (BACKEND, TYPE)", for reports.

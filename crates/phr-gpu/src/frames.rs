@@ -2,14 +2,20 @@
 //! [`phr_render::pipeline::FramePipeline`] (the viewer and its headless mode) while the CPU
 //! poses, builds the trees, accumulates and denoises. The scene is uploaded once, and what
 //! changed when it moves ([`crate::moving`]: the instances and the emitters, and the trees
-//! and primitives of the parts that changed; timed apart, waited for); each frame's samples
-//! are read back for the pipeline's film.
+//! and primitives of the parts that changed; timed apart, waited for). Each frame's samples
+//! are read back for the pipeline's film, or, for a window drawing with the same device, the
+//! GPU keeps the film ([`FrameTracer::accumulate`]) and writes the image to show into a
+//! texture ([`Shown`]): then only the ray count comes back, and the film when it is asked for.
+//! (The kept film sums in single precision; the viewer stops at a few thousand samples,
+//! where that is still far below what a display shows.)
 
 use crate::device::{Gpu, GpuError};
+use crate::display::{Display, Shown};
 use crate::moving::Uploaded;
 use crate::scene::{GpuScene, Packed};
 use crate::trace::GpuTracer;
 use phr_render::camera::{Camera, CameraDesc};
+use phr_render::film::Film;
 use phr_render::frame_tracer::{FrameJob, FrameTracer, TracedFrame};
 use std::time::Instant;
 
@@ -30,11 +36,32 @@ pub struct GpuFrames {
     /// The [`FrameJob::version`] uploaded, whether with lights, and what is on the GPU.
     uploaded: Option<(u64, bool, Uploaded)>,
     tracer: Option<(GpuTracer, TracerKey, CameraDesc)>,
+    /// The kept film's display (made for the tracer's sums), what it shows, and how many
+    /// textures it has had.
+    display: Option<Display>,
+    shown: Shown,
+    textures: u64,
+    /// The kept film's ray count after the last frame.
+    rays_before: u64,
 }
 
 impl GpuFrames {
     pub fn new(gpu: Gpu) -> Self {
-        Self { gpu, scene: None, uploaded: None, tracer: None }
+        Self {
+            gpu,
+            scene: None,
+            uploaded: None,
+            tracer: None,
+            display: None,
+            shown: Shown::default(),
+            textures: 0,
+            rays_before: 0,
+        }
+    }
+
+    /// The image of the kept film, for a window drawing with this device.
+    pub fn shown(&self) -> Shown {
+        self.shown.clone()
     }
 
     /// The scene of `job` on the GPU: uploaded whole the first time and when light sampling
@@ -63,7 +90,9 @@ impl GpuFrames {
         Ok(true)
     }
 
-    fn trace_frame(&mut self, job: &FrameJob) -> Result<TracedFrame, GpuError> {
+    /// The scene of `job` uploaded and a tracer made for it, seeing its view: how long the
+    /// upload took and how many bytes it wrote.
+    fn prepare(&mut self, job: &FrameJob) -> Result<(f64, u64), GpuError> {
         let start = Instant::now();
         let uploaded = self.upload(job)?;
         let upload_ms = if uploaded { start.elapsed().as_secs_f64() * 1e3 } else { 0.0 };
@@ -87,12 +116,54 @@ impl GpuFrames {
             _ => {
                 let tracer = GpuTracer::new(&self.gpu, scene, &camera, job.width, job.height, job.max_depth, job.seed)?;
                 self.tracer = Some((tracer, key, job.camera.clone()));
+                // The display reads the tracer's sums.
+                self.display = None;
             }
         }
-        let (tracer, _, _) = self.tracer.as_mut().expect("made above");
+        Ok((upload_ms, upload_bytes))
+    }
+
+    fn trace_frame(&mut self, job: &FrameJob) -> Result<TracedFrame, GpuError> {
+        let (upload_ms, upload_bytes) = self.prepare(job)?;
+        let scene = self.scene.as_ref().expect("uploaded");
+        let (tracer, _, _) = self.tracer.as_mut().expect("made");
         tracer.clear();
         tracer.render(scene, job.frame..job.frame + 1);
         Ok(TracedFrame { pixels: tracer.mean()?, rays: tracer.rays()?, upload_ms, upload_bytes })
+    }
+
+    /// Adds the frame to the kept film (emptied first if `restart`) and shows it.
+    fn accumulate_frame(&mut self, job: &FrameJob, restart: bool) -> Result<TracedFrame, GpuError> {
+        let (upload_ms, upload_bytes) = self.prepare(job)?;
+        let scene = self.scene.as_ref().expect("uploaded");
+        let (tracer, _, _) = self.tracer.as_mut().expect("made");
+        if restart {
+            tracer.clear();
+            self.rays_before = 0;
+        }
+        tracer.render(scene, job.frame..job.frame + 1);
+        let display = match self.display.take() {
+            Some(d) if (d.width, d.height) == (tracer.width, tracer.height) => d,
+            _ => {
+                self.textures += 1;
+                Display::new(&self.gpu, tracer.sums(), tracer.width, tracer.height, &self.shown, self.textures)
+            }
+        };
+        display.write(&self.gpu, tracer.samples());
+        self.display = Some(display);
+        // Waits for the frame (so frames are not queued ahead of the window).
+        let rays = tracer.rays()?;
+        let frame_rays = rays - self.rays_before;
+        self.rays_before = rays;
+        Ok(TracedFrame { pixels: Vec::new(), rays: frame_rays, upload_ms, upload_bytes })
+    }
+
+    /// The kept film's displayed image, read back (8-bit RGBA): what a window shows.
+    pub fn shown_pixels(&self) -> Result<Vec<u8>, GpuError> {
+        match &self.display {
+            Some(display) => display.read(&self.gpu),
+            None => Err(GpuError::Failed("no frame has been kept on the GPU".into())),
+        }
     }
 }
 
@@ -107,5 +178,20 @@ impl FrameTracer for GpuFrames {
 
     fn trace(&mut self, job: &FrameJob) -> Result<TracedFrame, String> {
         self.trace_frame(job).map_err(|e| e.to_string())
+    }
+
+    fn keeps_film(&self) -> bool {
+        true
+    }
+
+    fn accumulate(&mut self, job: &FrameJob, restart: bool) -> Result<TracedFrame, String> {
+        self.accumulate_frame(job, restart).map_err(|e| e.to_string())
+    }
+
+    fn film(&mut self) -> Result<Film, String> {
+        match &self.tracer {
+            Some((tracer, _, _)) => tracer.film().map_err(|e| e.to_string()),
+            None => Err("nothing traced on the GPU yet".into()),
+        }
     }
 }

@@ -14,7 +14,8 @@
 //! accumulating on the GPU, with the CPU's random numbers per pixel drawn in the CPU's order,
 //! so the two converge to the same image; [`queries::HitQueries`] answers closest-hit queries
 //! for a batch of rays, which the tests hold against the CPU's. [`frames::GpuFrames`] traces
-//! the viewer's frames (`phr view --device gpu`).
+//! the viewer's frames (`phr view --device gpu`), keeping the film on the GPU and writing the
+//! image to show into a texture ([`display`]) for a window that draws with the same device.
 //!
 //! Colour textures, alpha masks and environment maps are looked up and sampled as on the CPU.
 //! The parts of a two-level scene and the copies of meshes placed many times are traced
@@ -22,6 +23,7 @@
 //! denoiser (the front ends run the CPU's).
 
 pub mod device;
+pub mod display;
 pub mod frames;
 mod moving;
 pub mod queries;
@@ -29,6 +31,7 @@ pub mod scene;
 pub mod trace;
 
 pub use device::{Gpu, GpuError};
+pub use display::{Shown, ShownImage};
 pub use frames::GpuFrames;
 pub use queries::{GpuHit, HitQueries};
 pub use scene::GpuScene;

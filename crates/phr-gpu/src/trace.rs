@@ -191,6 +191,17 @@ impl GpuTracer {
         }
     }
 
+    /// Frames accumulated since the last [`GpuTracer::clear`].
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// The sums of the accumulated samples (`vec4<f32>` per pixel, row-major from the top
+    /// left), which the display kernel reads.
+    pub(crate) fn sums(&self) -> &wgpu::Buffer {
+        &self.sum
+    }
+
     /// Waits for the submitted frames.
     pub fn wait(&self) -> Result<(), GpuError> {
         self.gpu.wait()

@@ -10,9 +10,11 @@ use phr_bvh::{Builder, Ray};
 use phr_gpu::scene::{Packed, EMPTY_SLOT};
 use phr_gpu::{Gpu, GpuError, GpuFrames, GpuScene, GpuTracer, HitQueries};
 use phr_render::camera::Camera;
+use phr_render::film::Film;
+use phr_render::frame_tracer::{FrameJob, FrameTracer};
 use phr_render::geometry::Geometry;
 use phr_render::lights::LightSet;
-use phr_render::output::write_image;
+use phr_render::output::{rgba8, write_image};
 use phr_render::pipeline::{FramePipeline, PipelineKind, PipelineSettings, ViewMode};
 use phr_render::render::Renderer;
 use phr_render::sampler::Pcg32;
@@ -665,10 +667,13 @@ fn viewer_frames_alike(make_scene: &dyn Fn() -> Scene, pipeline: PipelineKind, s
         FramePipeline::new(scene, settings, camera)
     };
     let mut on_gpu = make().with_tracer(Box::new(GpuFrames::new(gpu().clone())));
+    // The film kept on the GPU, as for a window drawing with the device, read back here.
+    let mut kept = make().with_tracer(Box::new(GpuFrames::new(gpu().clone())));
+    kept.keep_film_on_device(true);
     let mut on_cpu = make();
     let mut whole = 0;
     for frame in 0..14 {
-        for p in [&mut on_gpu, &mut on_cpu] {
+        for p in [&mut on_gpu, &mut kept, &mut on_cpu] {
             p.playing = !(4..8).contains(&frame);
             if frame == 6 {
                 let mut camera = p.camera().clone();
@@ -681,11 +686,15 @@ fn viewer_frames_alike(make_scene: &dyn Fn() -> Scene, pipeline: PipelineKind, s
                 p.set_settings(settings);
             }
         }
-        let (g, c) = (on_gpu.step(0.1), on_cpu.step(0.1));
+        let (g, k, c) = (on_gpu.step(0.1), kept.step(0.1), on_cpu.step(0.1));
         let what = format!("{pipeline:?} viewer frame {frame}");
-        assert_eq!(g.device, "gpu", "{what}");
-        assert_eq!((g.moved, g.samples), (c.moved, c.samples), "{what}");
-        assert_alike(&on_cpu.raw_image(), &on_gpu.raw_image(), 300, &what);
+        assert_eq!((g.device, k.device), ("gpu", "gpu"), "{what}");
+        assert_eq!((g.moved, g.samples, k.samples), (c.moved, c.samples, c.samples), "{what}");
+        assert_eq!((g.rays, k.rays), (c.rays, c.rays), "{what}");
+        assert!(kept.film_on_device(), "{what}");
+        let cpu_image = on_cpu.raw_image();
+        assert_alike(&cpu_image, &on_gpu.raw_image(), 300, &what);
+        assert_alike(&cpu_image, &kept.raw_image(), 300, &format!("{what}, film kept on the GPU"));
         if matches!(frame, 0 | 8) {
             // Uploaded whole: the first frame, and light sampling switched on.
             whole = g.upload_bytes;
@@ -693,6 +702,58 @@ fn viewer_frames_alike(make_scene: &dyn Fn() -> Scene, pipeline: PipelineKind, s
             assert!(g.upload_bytes * 3 < whole, "{what}: {} bytes of {whole} uploaded", g.upload_bytes);
         }
     }
+}
+
+/// The film the GPU keeps for a window is the one read back frame by frame, and the image it
+/// writes for the window to show is that film's mean encoded as the CPU's viewer encodes it
+/// (to one level in 255), at a width whose rows the texture pads.
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn the_kept_film_and_its_shown_image_are_the_read_back_ones() {
+    let scene = reference_scene("spheres_sky");
+    let geometry = built(&scene, &Builder::default());
+    let camera = scene.view(None).unwrap();
+    let (width, height) = (72, 40);
+    let job = |frame| FrameJob {
+        scene: &scene,
+        geometry: &geometry,
+        lights: None,
+        camera: &camera,
+        width,
+        height,
+        max_depth: 6,
+        seed: 5,
+        frame,
+        version: 0,
+    };
+    let (mut kept, mut read_back) = (GpuFrames::new(gpu().clone()), GpuFrames::new(gpu().clone()));
+    let shown = kept.shown();
+    assert!(shown.get().is_none(), "nothing shown before a frame is kept");
+    let mut film = Film::new(width, height);
+    for frame in 0..6 {
+        let k = kept.accumulate(&job(frame), frame == 0).unwrap();
+        let r = read_back.trace(&job(frame)).unwrap();
+        assert!(k.pixels.is_empty(), "frame {frame}: nothing read back");
+        assert_eq!(k.rays, r.rays, "frame {frame}");
+        film.add_frame(&r.pixels);
+    }
+    let kept_film = kept.film().unwrap();
+    assert_alike(&film.mean(), &kept_film.mean(), 2000, "the kept film");
+    let image = shown.get().expect("shown");
+    assert_eq!((image.width, image.height, image.texture_number), (width, height, 1));
+    let expected = rgba8(&kept_film.mean());
+    let on_screen = kept.shown_pixels().unwrap();
+    assert_eq!(on_screen.len(), expected.len());
+    let worst = on_screen.iter().zip(&expected).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+    let exact = on_screen.iter().zip(&expected).filter(|(a, b)| a == b).count();
+    println!("shown image: {exact} of {} bytes exact, worst {worst}", expected.len());
+    assert!(worst <= 1, "the shown image is off by {worst} levels");
+    assert!(exact * 10 > expected.len() * 9, "{exact} of {} bytes exact", expected.len());
+    // A restart empties the kept film; the same texture shows it.
+    kept.accumulate(&job(6), true).unwrap();
+    let one = read_back.trace(&job(6)).unwrap().pixels;
+    assert_alike(&one, &kept.film().unwrap().mean(), 2000, "the kept film after a restart");
+    assert_eq!(shown.get().expect("shown").texture_number, 1);
 }
 
 /// An error the device reports on its own (here a buffer wgpu's validation refuses) comes back

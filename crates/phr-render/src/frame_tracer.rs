@@ -2,8 +2,13 @@
 //! `phr-gpu`) traces the samples of a [`crate::pipeline::FramePipeline`]'s frames while the
 //! pipeline keeps everything else on the CPU (posing, trees, the film, denoising), so the
 //! viewer, its headless mode and their reports work the same on every device.
+//!
+//! A device may also keep the film itself ([`FrameTracer::accumulate`]): then a window that
+//! shows the device's image where it is (`phr view --device gpu`) needs no frame read back,
+//! and the film comes back only when something on the CPU asks for it (a saved render).
 
 use crate::camera::CameraDesc;
+use crate::film::Film;
 use crate::geometry::Geometry;
 use crate::lights::LightSet;
 use crate::scene::Scene;
@@ -52,4 +57,18 @@ pub trait FrameTracer: Send {
     fn describe(&self) -> String;
     /// The frame's samples, or why the device cannot trace it.
     fn trace(&mut self, job: &FrameJob) -> Result<TracedFrame, String>;
+    /// Whether the device can keep the film ([`FrameTracer::accumulate`]).
+    fn keeps_film(&self) -> bool {
+        false
+    }
+    /// Adds the frame's samples to the film the device keeps (emptied first when `restart`)
+    /// and reads nothing back but the ray count: `pixels` is empty.
+    fn accumulate(&mut self, job: &FrameJob, restart: bool) -> Result<TracedFrame, String> {
+        let _ = (job, restart);
+        Err(format!("{} keeps no film", self.name()))
+    }
+    /// The film the device keeps, read back.
+    fn film(&mut self) -> Result<Film, String> {
+        Err(format!("{} keeps no film", self.name()))
+    }
 }

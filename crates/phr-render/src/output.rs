@@ -18,6 +18,19 @@ pub fn srgb_encode(x: f32) -> f32 {
     }
 }
 
+/// `pixels` (linear radiance) as 8-bit sRGB RGBA, opaque: what the viewer shows (and the
+/// GPU's display kernel writes, `crates/phr-gpu/src/shaders/display.wgsl`).
+pub fn rgba8(pixels: &[Vec3]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(pixels.len() * 4);
+    for p in pixels {
+        for c in p.to_array() {
+            out.push((srgb_encode(c) * 255.0 + 0.5) as u8);
+        }
+        out.push(255);
+    }
+    out
+}
+
 /// Writes `pixels` (linear radiance, row-major from the top left) in the format named by the
 /// extension of `path`: `.png`, `.exr` or `.pfm`.
 pub fn write_image(path: &Path, width: u32, height: u32, pixels: &[Vec3]) -> io::Result<()> {

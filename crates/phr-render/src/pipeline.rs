@@ -33,7 +33,7 @@ use crate::frame_tracer::{FrameJob, FrameTracer, TracedFrame};
 use crate::geometry::Geometry;
 use crate::integrator::FirstHit;
 use crate::lights::LightSet;
-use crate::output::{srgb_encode, turbo};
+use crate::output::{rgba8, turbo};
 use crate::rebuild::AsyncRebuilder;
 use crate::render::Renderer;
 use crate::sampler::JitterTable;
@@ -246,6 +246,12 @@ pub struct FramePipeline {
     lights: Option<LightSet>,
     /// Another device tracing the colour frames.
     tracer: Option<Box<dyn FrameTracer>>,
+    /// Whether the tracer is to keep the film ([`FramePipeline::keep_film_on_device`]).
+    keep_film: bool,
+    /// The frames since the last restart are in the tracer's film, not in `film`, which holds
+    /// them as last read back if `film_read` (nothing traced since).
+    film_on_device: bool,
+    film_read: bool,
     /// [`FrameJob::version`]: counts the changes of the geometry, its tree and the lights.
     version: u64,
     /// Online tuning: the builder chosen by measuring moving frames ([`FramePipeline::set_auto`]).
@@ -310,6 +316,9 @@ impl FramePipeline {
             landed_sah: 0.0,
             lights: None,
             tracer: None,
+            keep_film: false,
+            film_on_device: false,
+            film_read: false,
             version: 0,
             auto: None,
             settings,
@@ -338,6 +347,24 @@ impl FramePipeline {
     /// CPU). A tracer that fails is dropped, with a warning, and the CPU traces on.
     pub fn with_tracer(self, tracer: Box<dyn FrameTracer>) -> Self {
         Self { tracer: Some(tracer), ..self }
+    }
+
+    /// Has the tracer keep the film, where it can ([`FrameTracer::keeps_film`]): for a window
+    /// that shows the device's image itself. Colour frames are then added to the device's film
+    /// and not read back, unless the denoiser needs each frame's samples (its temporal
+    /// filter, in the first frames after a change); the film is read back when an image is
+    /// asked for ([`FramePipeline::image`]). Restarts the film when it changes.
+    pub fn keep_film_on_device(&mut self, keep: bool) {
+        if keep != self.keep_film {
+            self.keep_film = keep;
+            self.restart();
+        }
+    }
+
+    /// Whether the frames since the last restart are in the tracer's film (and the image to
+    /// show is the device's, not [`FramePipeline::image_rgba8`]).
+    pub fn film_on_device(&self) -> bool {
+        self.film_on_device
     }
 
     /// The device of the pipeline's tracer, `None` without one (or after it failed).
@@ -435,6 +462,8 @@ impl FramePipeline {
     /// Throws the accumulated samples away.
     pub fn restart(&mut self) {
         self.film.clear();
+        self.film_on_device = false;
+        self.film_read = false;
         self.samples = 0;
         self.guide = None;
         self.denoised = None;
@@ -484,7 +513,9 @@ impl FramePipeline {
         report.upload_bytes = traced.upload_bytes;
         report.device = device;
         let (pixels, rays) = (traced.pixels, traced.rays);
-        self.film.add_frame(&pixels);
+        if !self.film_on_device {
+            self.film.add_frame(&pixels);
+        }
         self.samples += 1;
         let s = self.samples;
         if let (Some(filter), ViewMode::Colour) = (self.settings.denoise, self.settings.mode) {
@@ -752,12 +783,24 @@ impl FramePipeline {
                 frame,
                 version: self.version,
             };
-            match tracer.trace(&job) {
-                // The guide's first hits come from the same camera rays, traced here.
-                Ok(traced) => return (traced, guided.then(|| renderer.first_hits(frame)), tracer.name()),
+            // The film starts on the device, or not at all (the temporal filter's frames, in
+            // the first frames after a change, are read back into the CPU's film).
+            let keep = self.keep_film && !guided && (self.samples == 0 || self.film_on_device) && tracer.keeps_film();
+            let traced = if keep { tracer.accumulate(&job, self.samples == 0) } else { tracer.trace(&job) };
+            match traced {
+                Ok(traced) => {
+                    (self.film_on_device, self.film_read) = (keep, false);
+                    // The guide's first hits come from the same camera rays, traced here.
+                    return (traced, guided.then(|| renderer.first_hits(frame)), tracer.name());
+                }
                 Err(why) => {
                     eprintln!("warning: {} failed ({why}); the CPU traces from frame {frame} on", tracer.name());
                     self.tracer = None;
+                    if self.film_on_device {
+                        // Its samples are lost with it: the film starts again.
+                        self.film.clear();
+                        (self.samples, self.film_on_device, self.film_read) = (0, false, false);
+                    }
                 }
             }
         }
@@ -818,6 +861,7 @@ impl FramePipeline {
     /// restarted. A filter that fails (OIDN without its library) leaves the raw mean, and
     /// says why once.
     fn denoise(&mut self, filter: Filter) {
+        self.read_film();
         if self.guide.is_none() {
             self.guide = Some(self.trace_guide(VIEWER_GUIDE_SAMPLES));
         }
@@ -833,9 +877,33 @@ impl FramePipeline {
         };
     }
 
+    /// Brings the tracer's film into `film` if it keeps it and it changed since last read.
+    /// A failed read leaves the film as last read, and says why.
+    fn read_film(&mut self) {
+        if !self.film_on_device || self.film_read {
+            return;
+        }
+        self.film_read = true;
+        let Some(tracer) = self.tracer.as_mut() else { return };
+        match tracer.film() {
+            Ok(film) if (film.width, film.height) == (self.film.width, self.film.height) => self.film = film,
+            Ok(film) => eprintln!(
+                "warning: {}'s film is {} × {}, not {} × {}",
+                tracer.name(),
+                film.width,
+                film.height,
+                self.film.width,
+                self.film.height
+            ),
+            Err(why) => eprintln!("warning: cannot read {}'s film: {why}", tracer.name()),
+        }
+    }
+
     /// The accumulated image (linear radiance, row-major from the top left): the last
-    /// denoised one when denoising is on and there is one since the film restarted.
-    pub fn image(&self) -> Vec<Vec3> {
+    /// denoised one when denoising is on and there is one since the film restarted. Reads
+    /// the film back from the device that keeps it.
+    pub fn image(&mut self) -> Vec<Vec3> {
+        self.read_film();
         match &self.denoised {
             Some(image) if self.settings.denoise.is_some() => image.clone(),
             _ => self.film.mean(),
@@ -843,21 +911,14 @@ impl FramePipeline {
     }
 
     /// The film's mean, never denoised.
-    pub fn raw_image(&self) -> Vec<Vec3> {
+    pub fn raw_image(&mut self) -> Vec<Vec3> {
+        self.read_film();
         self.film.mean()
     }
 
     /// [`FramePipeline::image`] as 8-bit sRGB RGBA, for display.
-    pub fn image_rgba8(&self) -> Vec<u8> {
-        let mean = self.image();
-        let mut out = Vec::with_capacity(mean.len() * 4);
-        for p in mean {
-            for c in p.to_array() {
-                out.push((srgb_encode(c).clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
-            }
-            out.push(255);
-        }
-        out
+    pub fn image_rgba8(&mut self) -> Vec<u8> {
+        rgba8(&self.image())
     }
 }
 

@@ -9,13 +9,18 @@ use glam::Vec3;
 use phr_bvh::triangle::{intersect_triangle, triangle_bounds};
 use phr_bvh::{validate, Builder, Ray};
 use phr_render::auto_builder::{AutoBuilder, AutoState, MARGIN, RECENT_FRAMES, TRIAL_FRAMES};
+use phr_render::film::Film;
 use phr_render::frame_tracer::{FrameJob, FrameTracer, TracedFrame};
 use phr_render::lights::LightSet;
-use phr_render::pipeline::{FramePipeline, PipelineKind, PipelineSettings, ViewMode, ACCUMULATED_DENOISE_FROM};
+use phr_render::pipeline::{
+    FramePipeline, FrameReport, PipelineKind, PipelineSettings, ViewMode, ACCUMULATED_DENOISE_FROM,
+};
 use phr_render::render::Renderer;
 use phr_render::scene::json::parse_scene;
 use phr_render::scene::RenderSettings;
 use std::path::Path;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::Arc;
 
 /// A floor, a sphere, and a quad light that moves sideways over them; the floor waves, and so
 /// does the light, so that its two triangles' areas (and light sampling's choice between
@@ -312,10 +317,17 @@ fn a_moving_view_is_denoised_towards_the_reference() {
 }
 
 /// A [`FrameTracer`] that traces on the CPU from the job alone (a renderer made afresh from
-/// what the job gives), recording the versions it saw; `fail_at`: fails that frame.
+/// what the job gives), recording the versions it saw; `fail_at`: fails that frame. With
+/// `keeps`, it keeps the film as the GPU does for a window that shows its image, counting the
+/// frames it accumulated and the films read back from it.
+#[derive(Default)]
 struct JobTracer {
-    versions: std::sync::Arc<std::sync::Mutex<Vec<u64>>>,
+    versions: Arc<std::sync::Mutex<Vec<u64>>>,
     fail_at: Option<u32>,
+    keeps: bool,
+    film: Option<Film>,
+    accumulated: Arc<AtomicU32>,
+    reads: Arc<AtomicU32>,
 }
 
 impl FrameTracer for JobTracer {
@@ -337,6 +349,39 @@ impl FrameTracer for JobTracer {
         let (pixels, stats) = renderer.render_frame(job.frame);
         Ok(TracedFrame { pixels, rays: stats.rays, upload_ms: 0.0, upload_bytes: 0 })
     }
+
+    fn keeps_film(&self) -> bool {
+        self.keeps
+    }
+
+    fn accumulate(&mut self, job: &FrameJob, restart: bool) -> Result<TracedFrame, String> {
+        let traced = self.trace(job)?;
+        if restart || self.film.is_none() {
+            self.film = Some(Film::new(job.width, job.height));
+        }
+        self.film.as_mut().expect("made above").add_frame(&traced.pixels);
+        self.accumulated.fetch_add(1, Ordering::Relaxed);
+        Ok(TracedFrame { pixels: Vec::new(), ..traced })
+    }
+
+    fn film(&mut self) -> Result<Film, String> {
+        self.reads.fetch_add(1, Ordering::Relaxed);
+        self.film.clone().ok_or_else(|| "no film yet".to_string())
+    }
+}
+
+/// Frame `frame` of two pipelines alike: the scene moves in frames 0–2, then stands still,
+/// and the camera moves at frame 5.
+fn step_both(a: &mut FramePipeline, b: &mut FramePipeline, frame: u32) -> (FrameReport, FrameReport) {
+    for p in [&mut *a, &mut *b] {
+        p.playing = frame < 3;
+        if frame == 5 {
+            let mut camera = p.camera().clone();
+            camera.position += Vec3::new(0.3, 0.0, 0.0);
+            p.set_camera(camera);
+        }
+    }
+    (a.step(0.1), b.step(0.1))
 }
 
 /// A pipeline whose frames another device traces shows what the CPU shows, moving or still,
@@ -346,21 +391,13 @@ impl FrameTracer for JobTracer {
 #[test]
 fn a_frame_tracer_traces_the_frames_the_cpu_would() {
     for explicit_lights in [false, true] {
-        let versions = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
-        let tracer = JobTracer { versions: versions.clone(), fail_at: None };
+        let versions = Arc::new(std::sync::Mutex::new(Vec::new()));
+        let tracer = JobTracer { versions: versions.clone(), ..Default::default() };
         let mut on_device = pipeline(Builder::PHR_FAST, explicit_lights).with_tracer(Box::new(tracer));
         let mut on_cpu = pipeline(Builder::PHR_FAST, explicit_lights);
         let mut moved = Vec::new();
         for frame in 0..8 {
-            for p in [&mut on_device, &mut on_cpu] {
-                p.playing = frame < 3;
-                if frame == 5 {
-                    let mut camera = p.camera().clone();
-                    camera.position += Vec3::new(0.3, 0.0, 0.0);
-                    p.set_camera(camera);
-                }
-            }
-            let (a, b) = (on_device.step(0.1), on_cpu.step(0.1));
+            let (a, b) = step_both(&mut on_device, &mut on_cpu, frame);
             assert_eq!((a.device, b.device), ("job", "cpu"));
             assert_eq!(
                 bits(&on_device.raw_image()),
@@ -399,10 +436,64 @@ fn a_frame_tracer_traces_the_frames_the_cpu_would() {
     }
 }
 
+/// With a tracer that keeps the film, the colour frames are not read back, and the images,
+/// read back when asked for (once per change), are the CPU's: still and moving, after a
+/// camera move, and back on the CPU's film when the denoiser needs each frame's samples.
+#[test]
+fn a_tracer_keeping_the_film_shows_what_the_cpu_shows() {
+    let (accumulated, reads) = (Arc::new(AtomicU32::new(0)), Arc::new(AtomicU32::new(0)));
+    let tracer =
+        JobTracer { keeps: true, accumulated: accumulated.clone(), reads: reads.clone(), ..Default::default() };
+    let mut on_device = pipeline(Builder::PHR_FAST, true).with_tracer(Box::new(tracer));
+    on_device.keep_film_on_device(true);
+    let mut on_cpu = pipeline(Builder::PHR_FAST, true);
+    for frame in 0..8 {
+        let (a, b) = step_both(&mut on_device, &mut on_cpu, frame);
+        assert_eq!((a.device, a.samples, a.rays), ("job", b.samples, b.rays), "frame {frame}");
+        assert!(on_device.film_on_device(), "frame {frame}");
+        if frame % 2 == 0 {
+            assert_eq!(bits(&on_device.raw_image()), bits(&on_cpu.raw_image()), "frame {frame}");
+            assert_eq!(on_device.image_rgba8(), on_cpu.image_rgba8(), "frame {frame}");
+        }
+    }
+    assert_eq!(accumulated.load(Ordering::Relaxed), 8);
+    assert_eq!(reads.load(Ordering::Relaxed), 4, "read once after each frame asked for");
+    // The temporal filter takes each frame's samples: read back, into the CPU's film.
+    for p in [&mut on_device, &mut on_cpu] {
+        let mut settings = p.settings().clone();
+        settings.denoise = Some(phr_render::denoise::Filter::Atrous);
+        p.set_settings(settings);
+    }
+    for frame in 0..ACCUMULATED_DENOISE_FROM + 2 {
+        on_device.step(0.1);
+        on_cpu.step(0.1);
+        assert!(!on_device.film_on_device());
+        assert_eq!(bits(&on_device.image()), bits(&on_cpu.image()), "denoised frame {frame}");
+    }
+    assert_eq!(accumulated.load(Ordering::Relaxed), 8);
+    // Without the denoiser the film goes back to the device; asked not to, it stays here.
+    for keep in [true, false] {
+        let mut settings = on_device.settings().clone();
+        settings.denoise = None;
+        on_device.set_settings(settings.clone());
+        on_cpu.set_settings(settings);
+        on_device.keep_film_on_device(keep);
+        // The switch restarted the film.
+        on_cpu.restart();
+        for _ in 0..2 {
+            on_device.step(0.1);
+            on_cpu.step(0.1);
+        }
+        assert_eq!(on_device.film_on_device(), keep);
+        assert_eq!(bits(&on_device.image()), bits(&on_cpu.image()), "keep {keep}");
+    }
+    assert_eq!(accumulated.load(Ordering::Relaxed), 10);
+}
+
 /// A tracer that fails is dropped, with a warning, and the CPU traces the frame instead.
 #[test]
 fn a_failing_frame_tracer_leaves_the_cpu_tracing() {
-    let tracer = JobTracer { versions: Default::default(), fail_at: Some(2) };
+    let tracer = JobTracer { fail_at: Some(2), ..Default::default() };
     let mut on_device = pipeline(Builder::PHR_FAST, true).with_tracer(Box::new(tracer));
     let mut on_cpu = pipeline(Builder::PHR_FAST, true);
     for frame in 0..4 {

@@ -105,7 +105,7 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
     };
     let mut pipeline = FramePipeline::new(scene, settings, view);
     if args.device == crate::render::Device::Gpu {
-        pipeline = crate::view::attach_gpu(pipeline, "animate")?;
+        pipeline = crate::view::attach_gpu(pipeline, "animate")?.0;
     }
     let progress = ProgressBar::new(args.frames as u64);
     progress.set_style(

@@ -101,6 +101,27 @@ fn the_gpu_viewer_renders_and_follows_input_under_xvfb() {
     viewer_under_xvfb(&["--device", "gpu"]);
 }
 
+/// The same without a denoiser, where the window draws the film the GPU keeps, from a texture
+/// of the GPU's device, as bright as the render saved from that film.
+#[cfg(feature = "gpu")]
+#[test]
+#[ignore = "needs Xvfb, xdotool and a GPU adapter (lavapipe): run with --ignored (.ci/run does)"]
+fn the_gpu_viewer_shows_the_gpus_own_image_under_xvfb() {
+    viewer_under_xvfb(&["--device", "gpu", "--denoiser", "none"]);
+}
+
+/// The mean luminance of the pixels of `path` right of `left` that are not black (in a
+/// window screenshot, the image drawn on the black central panel).
+fn lit_mean(path: &Path, left: u32) -> f32 {
+    let img = image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())).to_rgb8();
+    let lit: Vec<f32> = img
+        .enumerate_pixels()
+        .filter(|(x, _, p)| *x >= left && p.0.iter().any(|&c| c > 3))
+        .map(|(_, _, p)| 0.2126 * p[0] as f32 + 0.7152 * p[1] as f32 + 0.0722 * p[2] as f32)
+        .collect();
+    lit.iter().sum::<f32>() / lit.len().max(1) as f32
+}
+
 /// Starts `phr view builtin` with `extra` arguments in a window of a virtual X server,
 /// screenshots it twice while still and once after orbiting and flying.
 fn viewer_under_xvfb(extra: &[&str]) {
@@ -174,8 +195,22 @@ fn viewer_under_xvfb(extra: &[&str]) {
     std::thread::sleep(Duration::from_secs(1));
     let still_a = image_region(&screenshot(0));
     std::thread::sleep(Duration::from_secs(1));
-    let still_b = image_region(&screenshot(1));
+    let still_b_path = screenshot(1);
+    let still_b = image_region(&still_b_path);
     assert!(std_dev(&still_a) > 10.0, "the image is blank (std dev {})", std_dev(&still_a));
+    if extra.contains(&"none") {
+        // The film as shown against the render saved from it (the same film a moment later):
+        // alike in brightness. Shown encoded twice or decoded once more, it was 0.5 times as
+        // bright. (Both the CPU's window and the GPU's measure about 1.09 here: the screenshot
+        // is not the saved image's pixels one for one.)
+        xdotool(&display, &["key", "p"]);
+        let saved = out.join("render-000.png");
+        wait_for("the saved render", Duration::from_secs(30), || saved.is_file());
+        std::thread::sleep(Duration::from_millis(200));
+        let (shown, rendered) = (lit_mean(&still_b_path, 284), lit_mean(&saved, 0));
+        println!("mean luminance: {shown} shown, {rendered} saved");
+        assert!((0.85..1.25).contains(&(shown / rendered)), "shown {shown}, saved {rendered}");
+    }
 
     // Orbit with a drag across the image, and fly forward with W.
     let geometry = xdotool(&display, &["getwindowgeometry", "--shell", &window]);
@@ -206,6 +241,8 @@ fn viewer_under_xvfb(extra: &[&str]) {
     if extra.contains(&"gpu") {
         // The GPU traced the frames throughout (a failing device is dropped with a warning).
         assert!(said.contains("traced on the gpu") && !said.contains("failed"), "{said}");
+        // Without a denoiser, the window draws the GPU's own image.
+        assert_eq!(said.contains("shows the GPU's image"), extra.contains(&"none"), "{said}");
     }
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -152,7 +152,7 @@ impl From<ModeArg> for ViewMode {
 }
 
 pub fn run(args: &ViewArgs) -> Result<()> {
-    let pipeline = open(args)?;
+    let (pipeline, on_gpu) = open(args)?;
     if let Some(device) = pipeline.tracer() {
         eprintln!("phr view: colour frames traced on the {device}");
     }
@@ -167,22 +167,23 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         );
         return headless::run(args, pipeline);
     }
-    match window::run(args, pipeline) {
+    match window::run(args, pipeline, on_gpu) {
         Err(window::WindowError::Start(e)) => {
             eprintln!(
                 "phr view: cannot open a window ({e}); running headless: {} frames to {}",
                 args.frames,
                 args.out.display()
             );
-            headless::run(args, open(args)?)
+            headless::run(args, open(args)?.0)
         }
         Err(window::WindowError::Other(e)) => Err(e),
         Ok(()) => Ok(()),
     }
 }
 
-/// Loads the scene and sets the pipeline up as the arguments say.
-fn open(args: &ViewArgs) -> Result<FramePipeline> {
+/// Loads the scene and sets the pipeline up as the arguments say; with `--device gpu`, also
+/// gives the GPU, for the window to draw with.
+fn open(args: &ViewArgs) -> Result<(FramePipeline, Option<device::OnGpu>)> {
     if args.denoiser == Denoiser::Oidn && !phr_render::denoise::oidn::AVAILABLE {
         anyhow::bail!("--denoiser oidn: {}", phr_render::denoise::oidn::MISSING);
     }
@@ -216,12 +217,14 @@ fn open(args: &ViewArgs) -> Result<FramePipeline> {
         denoise: args.denoiser.filter(),
     };
     let mut pipeline = FramePipeline::new(scene, settings, camera);
+    let mut gpu = None;
     if on_gpu {
-        pipeline = device::attach_gpu(pipeline, "view")?;
+        let (attached, device) = device::attach_gpu(pipeline, "view")?;
+        (pipeline, gpu) = (attached, Some(device));
     }
     pipeline.set_auto(auto);
     pipeline.playing = !args.paused;
-    Ok(pipeline)
+    Ok((pipeline, gpu))
 }
 
 fn has_display() -> bool {

@@ -1,5 +1,5 @@
-//! The viewer window (eframe/egui on OpenGL): the path-traced image in the middle, controls and
-//! live statistics on the left.
+//! The viewer window (eframe/egui, on OpenGL, or on the GPU's own device when it traces the
+//! frames): the path-traced image in the middle, controls and live statistics on the left.
 //!
 //! Rendering runs on its own thread ([`worker`]) so the window stays responsive however long
 //! a frame takes: the window publishes what the user set (camera, settings, requests), the
@@ -12,6 +12,7 @@
 //! window (PNG).
 
 use super::camera_control::CameraControl;
+use super::device::{OnGpu, ShownTexture};
 use super::ViewArgs;
 use anyhow::anyhow;
 use eframe::egui;
@@ -110,7 +111,9 @@ struct Published {
     version: u64,
     width: u32,
     height: u32,
+    /// The image, unless the GPU keeps it (`on_device`: the window draws the GPU's texture).
     rgba: Vec<u8>,
+    on_device: bool,
     report: FrameReport,
     /// (frame ms, render ms, refit + build ms) of the last frames.
     history: VecDeque<[f32; 3]>,
@@ -134,7 +137,7 @@ pub enum WindowError {
     Other(anyhow::Error),
 }
 
-pub fn run(args: &ViewArgs, pipeline: FramePipeline) -> Result<(), WindowError> {
+pub fn run(args: &ViewArgs, mut pipeline: FramePipeline, on_gpu: Option<OnGpu>) -> Result<(), WindowError> {
     std::fs::create_dir_all(&args.out)
         .map_err(|e| WindowError::Other(anyhow!("creating {}: {e}", args.out.display())))?;
     let scene = pipeline.scene();
@@ -171,6 +174,8 @@ pub fn run(args: &ViewArgs, pipeline: FramePipeline) -> Result<(), WindowError> 
         Builder::Phr(o) => (BuilderChoice::PhrCustom, o.alpha, o.delta, o.branching),
     };
     let title = format!("phr — {}", args.scene);
+    // Drawing with the GPU's device, the window shows the film the GPU keeps.
+    pipeline.keep_film_on_device(on_gpu.is_some());
     let app = ViewerApp {
         shared: shared.clone(),
         worker: None,
@@ -180,6 +185,8 @@ pub fn run(args: &ViewArgs, pipeline: FramePipeline) -> Result<(), WindowError> 
         views,
         controls,
         texture: None,
+        shown: on_gpu.as_ref().map(OnGpu::shown_texture),
+        on_device: false,
         shown_version: 0,
         choice,
         alpha,
@@ -198,7 +205,12 @@ pub fn run(args: &ViewArgs, pipeline: FramePipeline) -> Result<(), WindowError> 
             300.0 + (2 * args.width).clamp(512, 1280) as f32,
             (2 * args.height).clamp(860, 1000) as f32,
         ]),
+        renderer: eframe::Renderer::Glow,
         ..Default::default()
+    };
+    let options = match &on_gpu {
+        Some(gpu) => gpu.native_options(options),
+        None => options,
     };
     let result = eframe::run_native("phr", options, Box::new(|_cc| Ok(Box::new(app))));
     shared.controls.lock().expect("controls").quit = true;
@@ -215,6 +227,9 @@ struct ViewerApp {
     views: Vec<(String, CameraDesc)>,
     controls: Controls,
     texture: Option<egui::TextureHandle>,
+    /// The GPU's image (`--device gpu`), and whether the last frame is there.
+    shown: Option<ShownTexture>,
+    on_device: bool,
     shown_version: u64,
     choice: BuilderChoice,
     alpha: f32,
@@ -239,7 +254,7 @@ impl Drop for ViewerApp {
 }
 
 impl eframe::App for ViewerApp {
-    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
         if let Some(pipeline) = self.pipeline.take() {
             let shared = self.shared.clone();
@@ -253,7 +268,7 @@ impl eframe::App for ViewerApp {
             egui::ScrollArea::vertical().show(ui, |ui| self.side_panel(ui));
         });
         egui::CentralPanel::default().frame(egui::Frame::NONE.fill(egui::Color32::BLACK)).show(ui, |ui| {
-            self.image(ui);
+            self.image(ui, frame);
         });
         self.controls.camera = self.camera.desc();
         self.controls.settings.builder = self.builder();
@@ -298,7 +313,11 @@ impl ViewerApp {
 
     fn update_texture(&mut self, ctx: &egui::Context) {
         let published = self.shared.published.lock().expect("published");
-        if published.version == self.shown_version || published.rgba.is_empty() {
+        if published.version == self.shown_version {
+            return;
+        }
+        self.on_device = published.on_device;
+        if published.rgba.is_empty() {
             return;
         }
         let size = [published.width as usize, published.height as usize];
@@ -394,19 +413,21 @@ impl ViewerApp {
         ctx.request_repaint();
     }
 
-    fn image(&mut self, ui: &mut egui::Ui) {
-        let Some(texture) = &self.texture else {
+    fn image(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) {
+        let on_gpu = match (&mut self.shown, self.on_device) {
+            (Some(shown), true) => shown.texture(frame),
+            _ => None,
+        };
+        let Some((id, [w, h])) = on_gpu.or_else(|| self.texture.as_ref().map(|t| (t.id(), t.size()))) else {
             ui.centered_and_justified(|ui| ui.label("building the BVH…"));
             return;
         };
+        let (w, h) = (w as f32, h as f32);
         let available = ui.available_size();
-        let [w, h] = texture.size().map(|s| s as f32);
         let fit = (available.x / w).min(available.y / h).max(0.01);
         let size = egui::vec2(w * fit, h * fit);
         let response = ui
-            .centered_and_justified(|ui| {
-                ui.add(egui::Image::new((texture.id(), size)).sense(egui::Sense::click_and_drag()))
-            })
+            .centered_and_justified(|ui| ui.add(egui::Image::new((id, size)).sense(egui::Sense::click_and_drag())))
             .inner;
         let delta = response.drag_delta();
         if response.dragged_by(egui::PointerButton::Primary) && delta != egui::Vec2::ZERO {
@@ -648,7 +669,7 @@ fn worker(mut pipeline: FramePipeline, shared: Arc<Shared>, ctx: egui::Context, 
             pipeline.time = 0.0;
         }
         if controls.save_render {
-            let message = save_render(&pipeline, &out, &mut saved);
+            let message = save_render(&mut pipeline, &out, &mut saved);
             shared.published.lock().expect("published").message = message;
             ctx.request_repaint();
         }
@@ -661,12 +682,15 @@ fn worker(mut pipeline: FramePipeline, shared: Arc<Shared>, ctx: egui::Context, 
         let dt = last.elapsed().as_secs_f32().min(0.1);
         last = Instant::now();
         let report = pipeline.step(dt);
-        let rgba = pipeline.image_rgba8();
+        // The GPU shows the film it keeps: nothing to read back.
+        let on_device = pipeline.film_on_device();
+        let rgba = if on_device { Vec::new() } else { pipeline.image_rgba8() };
         let mut p = shared.published.lock().expect("published");
         p.version += 1;
         p.width = pipeline.settings().width;
         p.height = pipeline.settings().height;
         p.rgba = rgba;
+        p.on_device = on_device;
         p.report = report;
         p.auto = pipeline.auto().map(AutoBuilder::describe);
         if p.history.len() == HISTORY {
@@ -682,7 +706,7 @@ fn worker(mut pipeline: FramePipeline, shared: Arc<Shared>, ctx: egui::Context, 
     }
 }
 
-fn save_render(pipeline: &FramePipeline, out: &std::path::Path, saved: &mut u32) -> String {
+fn save_render(pipeline: &mut FramePipeline, out: &std::path::Path, saved: &mut u32) -> String {
     let (w, h) = (pipeline.settings().width, pipeline.settings().height);
     let image = pipeline.image();
     let stem = out.join(format!("render-{:03}", *saved));
