@@ -45,8 +45,13 @@ impl Shown {
         self.0.lock().unwrap_or_else(|e| e.into_inner()).clone()
     }
 
-    fn set(&self, image: ShownImage) {
+    pub(crate) fn set(&self, image: ShownImage) {
         *self.0.lock().unwrap_or_else(|e| e.into_inner()) = Some(image);
+    }
+
+    /// Whether anyone but its writer holds it (a window): else the image is not written.
+    pub(crate) fn watched(&self) -> bool {
+        Arc::strong_count(&self.0) > 1
     }
 }
 
@@ -56,14 +61,16 @@ pub(crate) struct Display {
     group: wgpu::BindGroup,
     uniform: wgpu::Buffer,
     texture: wgpu::Texture,
+    view: wgpu::TextureView,
+    texture_number: u64,
     pub width: u32,
     pub height: u32,
 }
 
 impl Display {
     /// The display of the film whose sums are `sum` (`width × height` of `vec4<f32>`), into a
-    /// new texture published in `shown` as number `texture_number`.
-    pub fn new(gpu: &Gpu, sum: &wgpu::Buffer, width: u32, height: u32, shown: &Shown, texture_number: u64) -> Self {
+    /// new texture, number `texture_number`.
+    pub fn new(gpu: &Gpu, sum: &wgpu::Buffer, width: u32, height: u32, texture_number: u64) -> Self {
         let device = &gpu.device;
         let texture = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("displayed image"),
@@ -132,8 +139,17 @@ impl Display {
             ],
         });
         let pipeline = gpu.pipeline("display", DISPLAY_WGSL, "show", &[&layout], &[]);
-        shown.set(ShownImage { view, width, height, texture_number });
-        Self { pipeline, group, uniform, texture, width, height }
+        Self { pipeline, group, uniform, texture, view, texture_number, width, height }
+    }
+
+    /// The texture, for [`Shown`].
+    pub fn image(&self) -> ShownImage {
+        ShownImage {
+            view: self.view.clone(),
+            width: self.width,
+            height: self.height,
+            texture_number: self.texture_number,
+        }
     }
 
     /// Writes the mean of `samples` frames' sums into the texture (submitted, not waited for).

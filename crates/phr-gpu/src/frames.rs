@@ -5,9 +5,10 @@
 //! and primitives of the parts that changed; timed apart, waited for). Each frame's samples
 //! are read back for the pipeline's film, or, for a window drawing with the same device, the
 //! GPU keeps the film ([`FrameTracer::accumulate`]) and writes the image to show into a
-//! texture ([`Shown`]): then only the ray count comes back, and the film when it is asked for.
-//! (The kept film sums in single precision; the viewer stops at a few thousand samples,
-//! where that is still far below what a display shows.)
+//! texture ([`Shown`], written only while a window holds it): then only the ray count comes
+//! back, and the film when it is asked for. (The kept film sums in single precision, as the
+//! GPU's renders do between their drains: rounding to nearest, of the order of 1e-5 of the
+//! mean after 100,000 frames.)
 
 use crate::device::{Gpu, GpuError};
 use crate::display::{Display, Shown};
@@ -43,6 +44,9 @@ pub struct GpuFrames {
     textures: u64,
     /// The kept film's ray count after the last frame.
     rays_before: u64,
+    /// Whether the tracer's sums are the kept film (no tracer made and no frame traced alone
+    /// since its last restart): else the next kept frame restarts it.
+    kept: bool,
 }
 
 impl GpuFrames {
@@ -56,6 +60,7 @@ impl GpuFrames {
             shown: Shown::default(),
             textures: 0,
             rays_before: 0,
+            kept: false,
         }
     }
 
@@ -116,8 +121,9 @@ impl GpuFrames {
             _ => {
                 let tracer = GpuTracer::new(&self.gpu, scene, &camera, job.width, job.height, job.max_depth, job.seed)?;
                 self.tracer = Some((tracer, key, job.camera.clone()));
-                // The display reads the tracer's sums.
+                // The display reads the tracer's sums; they hold no kept film.
                 self.display = None;
+                self.kept = false;
             }
         }
         Ok((upload_ms, upload_bytes))
@@ -128,6 +134,7 @@ impl GpuFrames {
         let scene = self.scene.as_ref().expect("uploaded");
         let (tracer, _, _) = self.tracer.as_mut().expect("made");
         tracer.clear();
+        self.kept = false;
         tracer.render(scene, job.frame..job.frame + 1);
         Ok(TracedFrame { pixels: tracer.mean()?, rays: tracer.rays()?, upload_ms, upload_bytes })
     }
@@ -137,23 +144,27 @@ impl GpuFrames {
         let (upload_ms, upload_bytes) = self.prepare(job)?;
         let scene = self.scene.as_ref().expect("uploaded");
         let (tracer, _, _) = self.tracer.as_mut().expect("made");
-        if restart {
+        if restart || !self.kept {
             tracer.clear();
-            self.rays_before = 0;
+            (self.rays_before, self.kept) = (0, true);
         }
         tracer.render(scene, job.frame..job.frame + 1);
-        let display = match self.display.take() {
-            Some(d) if (d.width, d.height) == (tracer.width, tracer.height) => d,
-            _ => {
-                self.textures += 1;
-                Display::new(&self.gpu, tracer.sums(), tracer.width, tracer.height, &self.shown, self.textures)
-            }
-        };
-        display.write(&self.gpu, tracer.samples());
-        self.display = Some(display);
+        if self.shown.watched() {
+            let made = match self.display.take() {
+                Some(d) if (d.width, d.height) == (tracer.width, tracer.height) => d,
+                _ => {
+                    self.textures += 1;
+                    Display::new(&self.gpu, tracer.sums(), tracer.width, tracer.height, self.textures)
+                }
+            };
+            made.write(&self.gpu, tracer.samples());
+            // Shown once written: a new texture is never drawn empty.
+            self.shown.set(made.image());
+            self.display = Some(made);
+        }
         // Waits for the frame (so frames are not queued ahead of the window).
         let rays = tracer.rays()?;
-        let frame_rays = rays - self.rays_before;
+        let frame_rays = rays.saturating_sub(self.rays_before);
         self.rays_before = rays;
         Ok(TracedFrame { pixels: Vec::new(), rays: frame_rays, upload_ms, upload_bytes })
     }

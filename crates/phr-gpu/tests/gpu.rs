@@ -750,10 +750,30 @@ fn the_kept_film_and_its_shown_image_are_the_read_back_ones() {
     assert!(worst <= 1, "the shown image is off by {worst} levels");
     assert!(exact * 10 > expected.len() * 9, "{exact} of {} bytes exact", expected.len());
     // A restart empties the kept film; the same texture shows it.
-    kept.accumulate(&job(6), true).unwrap();
-    let one = read_back.trace(&job(6)).unwrap().pixels;
-    assert_alike(&one, &kept.film().unwrap().mean(), 2000, "the kept film after a restart");
+    let k = kept.accumulate(&job(6), true).unwrap();
+    let r = read_back.trace(&job(6)).unwrap();
+    assert_eq!(k.rays, r.rays, "after a restart");
+    let restarted = kept.film().unwrap().mean();
+    assert_alike(&r.pixels, &restarted, 2000, "the kept film after a restart");
     assert_eq!(shown.get().expect("shown").texture_number, 1);
+    assert_shown(&kept, &restarted, "after a restart");
+    // Another size: a new tracer, a new film and a new texture, shown once written.
+    let resized = FrameJob { width: 40, height: 24, ..job(7) };
+    kept.accumulate(&resized, false).unwrap();
+    let one = read_back.trace(&resized).unwrap().pixels;
+    let film = kept.film().unwrap().mean();
+    assert_alike(&one, &film, 800, "the kept film of another size");
+    let image = shown.get().expect("shown");
+    assert_eq!((image.width, image.height, image.texture_number), (40, 24, 2));
+    assert_shown(&kept, &film, "another size");
+}
+
+/// What `frames` shows is `film` encoded as the CPU's viewer encodes it, to one level in 255.
+fn assert_shown(frames: &GpuFrames, film: &[Vec3], what: &str) {
+    let (expected, on_screen) = (rgba8(film), frames.shown_pixels().unwrap());
+    assert_eq!(on_screen.len(), expected.len(), "{what}");
+    let worst = on_screen.iter().zip(&expected).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+    assert!(worst <= 1, "{what}: the shown image is off by {worst} levels");
 }
 
 /// An error the device reports on its own (here a buffer wgpu's validation refuses) comes back

@@ -351,9 +351,10 @@ impl FramePipeline {
 
     /// Has the tracer keep the film, where it can ([`FrameTracer::keeps_film`]): for a window
     /// that shows the device's image itself. Colour frames are then added to the device's film
-    /// and not read back, unless the denoiser needs each frame's samples (its temporal
-    /// filter, in the first frames after a change); the film is read back when an image is
-    /// asked for ([`FramePipeline::image`]). Restarts the film when it changes.
+    /// and not read back, and the film is read back when an image is asked for
+    /// ([`FramePipeline::image`]). With a denoiser on, the frames are read back as without (it
+    /// filters each frame's samples first, then the CPU's film). Restarts the film when it
+    /// changes.
     pub fn keep_film_on_device(&mut self, keep: bool) {
         if keep != self.keep_film {
             self.keep_film = keep;
@@ -878,25 +879,27 @@ impl FramePipeline {
     }
 
     /// Brings the tracer's film into `film` if it keeps it and it changed since last read.
-    /// A failed read leaves the film as last read, and says why.
+    /// A device whose film cannot be read is dropped, as one that fails to trace, and the
+    /// film starts again (empty: 0 samples, not an image that claims them).
     fn read_film(&mut self) {
         if !self.film_on_device || self.film_read {
             return;
         }
         self.film_read = true;
         let Some(tracer) = self.tracer.as_mut() else { return };
-        match tracer.film() {
-            Ok(film) if (film.width, film.height) == (self.film.width, self.film.height) => self.film = film,
-            Ok(film) => eprintln!(
-                "warning: {}'s film is {} × {}, not {} × {}",
-                tracer.name(),
-                film.width,
-                film.height,
-                self.film.width,
-                self.film.height
-            ),
-            Err(why) => eprintln!("warning: cannot read {}'s film: {why}", tracer.name()),
-        }
+        let why = match tracer.film() {
+            Ok(film) if (film.width, film.height) == (self.film.width, self.film.height) => {
+                self.film = film;
+                return;
+            }
+            Ok(film) => {
+                format!("its film is {} × {}, not {} × {}", film.width, film.height, self.film.width, self.film.height)
+            }
+            Err(why) => why,
+        };
+        eprintln!("warning: cannot read {}'s film ({why}); the CPU traces from here on", tracer.name());
+        self.tracer = None;
+        self.restart();
     }
 
     /// The accumulated image (linear radiance, row-major from the top left): the last

@@ -356,10 +356,11 @@ impl FrameTracer for JobTracer {
 
     fn accumulate(&mut self, job: &FrameJob, restart: bool) -> Result<TracedFrame, String> {
         let traced = self.trace(job)?;
-        if restart || self.film.is_none() {
+        if restart {
             self.film = Some(Film::new(job.width, job.height));
         }
-        self.film.as_mut().expect("made above").add_frame(&traced.pixels);
+        let film = self.film.as_mut().ok_or("a kept film must start with a restart")?;
+        film.add_frame(&traced.pixels);
         self.accumulated.fetch_add(1, Ordering::Relaxed);
         Ok(TracedFrame { pixels: Vec::new(), ..traced })
     }
@@ -502,4 +503,25 @@ fn a_failing_frame_tracer_leaves_the_cpu_tracing() {
         assert_eq!(bits(&on_device.raw_image()), bits(&on_cpu.raw_image()), "frame {frame}");
     }
     assert!(on_device.tracer().is_none());
+}
+
+/// A tracer that fails while keeping the film takes the film's samples with it: the film
+/// starts again on the CPU, holding and counting the frames from the failure on.
+#[test]
+fn a_failing_tracer_that_kept_the_film_starts_it_again() {
+    let tracer = JobTracer { keeps: true, fail_at: Some(2), ..Default::default() };
+    let mut on_device = pipeline(Builder::PHR_FAST, true).with_tracer(Box::new(tracer));
+    on_device.keep_film_on_device(true);
+    let mut on_cpu = pipeline(Builder::PHR_FAST, true);
+    (on_device.playing, on_cpu.playing) = (false, false);
+    for frame in 0..4 {
+        if frame == 2 {
+            on_cpu.restart();
+        }
+        let (a, b) = (on_device.step(0.1), on_cpu.step(0.1));
+        assert_eq!((a.device, a.samples), (if frame < 2 { "job" } else { "cpu" }, b.samples), "frame {frame}");
+        assert_eq!(on_device.film_on_device(), frame < 2);
+    }
+    assert_eq!(on_device.samples(), 2);
+    assert_eq!(bits(&on_device.raw_image()), bits(&on_cpu.raw_image()));
 }

@@ -107,8 +107,8 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
     if args.device == crate::render::Device::Gpu {
         pipeline = crate::view::attach_gpu(pipeline, "animate")?.0;
     }
-    // A GPU keeps the film; it is read back for the PNGs only.
-    pipeline.keep_film_on_device(true);
+    // Without PNGs (one per frame), a GPU keeps the film: nothing is read back.
+    pipeline.keep_film_on_device(!args.png);
     let progress = ProgressBar::new(args.frames as u64);
     progress.set_style(
         ProgressStyle::with_template("{spinner} animating [{bar:30}] {pos}/{len} frames {msg}")

@@ -83,6 +83,37 @@ fn the_viewer_traces_its_frames_on_the_gpu() {
     }
 }
 
+/// Headless without a denoiser the GPU keeps the film, read back for the PNGs only: a still
+/// view's PNGs are the CPU's (the same samples: 98 % of the 8-bit values within 2 of the
+/// CPU's), and each frame's rays are the CPU's.
+#[cfg(feature = "gpu")]
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe: apt-get install mesa-vulkan-drivers libvulkan1); .ci/run runs it"]
+fn the_headless_viewer_reads_the_gpus_film_for_its_pngs_only() {
+    use common::Table;
+    let dir = TempDir::new("gpu-kept");
+    for device in ["cpu", "gpu"] {
+        let mut args = vec!["--threads", "2", "view", "builtin", "--headless", "--paused", "--denoiser", "none"];
+        args.extend(["--frames", "4", "--png-every", "3", "--width", "48", "--height", "32"]);
+        args.extend(["--device", device, "--out", device]);
+        let out = phr_within(&dir.0, &args, Duration::from_secs(300));
+        assert_eq!(out.code, Some(0), "{}", out.stderr);
+    }
+    let (cpu, gpu) = (Table::read(&dir.join("cpu/frames.csv")), Table::read(&dir.join("gpu/frames.csv")));
+    for row in 0..4 {
+        assert_eq!(gpu.str(row, "device"), "gpu");
+        assert_eq!(gpu.num(row, "rays"), cpu.num(row, "rays"), "frame {row}");
+    }
+    for frame in [0, 3] {
+        let png = |d: &str| image::open(dir.join(&format!("{d}/frame{frame:05}.png"))).unwrap().to_rgb8().into_raw();
+        let (c, g) = (png("cpu"), png("gpu"));
+        assert_eq!(c.len(), 48 * 32 * 3);
+        let close = c.iter().zip(&g).filter(|(a, b)| a.abs_diff(**b) <= 2).count();
+        assert!(close * 100 >= c.len() * 98, "frame {frame}: {close} of {} values within 2", c.len());
+    }
+    assert!(!dir.join("gpu/frame00001.png").exists(), "only every third frame is written");
+}
+
 /// `phr view --device gpu` on 1,000 turning copies of the bunny: the copies go up as one
 /// bunny's tree and 1,000 instances (not 69M flattened triangles), and a moving frame writes
 /// only the instances and the tree over them.

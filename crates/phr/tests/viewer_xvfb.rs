@@ -1,4 +1,5 @@
-//! The viewer window under a virtual X server (Xvfb, Mesa's software OpenGL): it starts,
+//! The viewer window under a virtual X server (Xvfb; Mesa's software OpenGL, or with
+//! `--device gpu` the GPU's device, lavapipe in CI): it starts,
 //! renders, and simulated input (xdotool: a mouse drag that orbits, the W key that flies)
 //! changes what the window shows. Screenshots are the window's own framebuffer (F12).
 //!

@@ -1,7 +1,7 @@
 //! `phr view --headless`: the viewer's frame loop without a window, on a fixed clock (`--dt`
 //! seconds of animation per frame), writing the frames as PNG and one CSV row of timings
 //! per frame, so runs can be scripted and compared. A GPU tracing the frames keeps the film,
-//! as for the window: it is read back for the PNGs only.
+//! as for the window, unless a PNG is written every frame: it is read back for the PNGs only.
 
 use super::{memory_mib, ViewArgs};
 use anyhow::{Context, Result};
@@ -11,7 +11,9 @@ use phr_render::pipeline::{FramePipeline, FrameReport};
 use std::io::Write;
 
 pub fn run(args: &ViewArgs, mut pipeline: FramePipeline) -> Result<()> {
-    pipeline.keep_film_on_device(true);
+    // Unless every frame is written: reading the whole film back (sums and squares) would
+    // then cost twice what reading each frame does.
+    pipeline.keep_film_on_device(args.png_every != 1);
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let csv_path = args.out.join("frames.csv");
     // Rows stream to a temporary file renamed into place at the end (no partial CSV on

@@ -84,8 +84,9 @@ pub struct ViewArgs {
     #[arg(long, value_enum, default_value = "atrous")]
     denoiser: Denoiser,
     /// `gpu` (a `phr` built with `--features gpu`): the GPU traces the colour frames, with any
-    /// pipeline, meshes placed many times as copies of one tree, as on the CPU; the CPU poses, builds the trees,
-    /// accumulates and denoises, and traces the other modes.
+    /// pipeline, meshes placed many times as copies of one tree, as on the CPU; the CPU poses,
+    /// builds the trees, denoises and traces the other modes. The window draws with the GPU's
+    /// device; without a denoiser the GPU keeps the film and the window shows it there.
     #[arg(long, value_enum, default_value = "cpu")]
     device: Device,
 }
@@ -169,8 +170,10 @@ pub fn run(args: &ViewArgs) -> Result<()> {
     }
     match window::run(args, pipeline, on_gpu) {
         Err(window::WindowError::Start(e)) => {
+            // (One window per process: the event loop cannot be made again for OpenGL.)
+            let hint = if args.device == Device::Gpu { " (--device cpu draws through OpenGL)" } else { "" };
             eprintln!(
-                "phr view: cannot open a window ({e}); running headless: {} frames to {}",
+                "phr view: cannot open a window ({e}){hint}; running headless: {} frames to {}",
                 args.frames,
                 args.out.display()
             );

@@ -132,7 +132,8 @@ struct Shared {
 
 /// Why the viewer stopped with an error.
 pub enum WindowError {
-    /// No window could be opened (no usable display or OpenGL): the caller may go headless.
+    /// No window could be opened (no usable display, OpenGL, or, with `--device gpu`, a
+    /// GPU that cannot draw to it): the caller may go headless.
     Start(String),
     Other(anyhow::Error),
 }
@@ -387,7 +388,7 @@ impl ViewerApp {
         }
     }
 
-    /// Saves what the window shows (the OpenGL framebuffer) as `window-N.png`.
+    /// Saves what the window shows (its framebuffer, OpenGL's or the GPU's) as `window-N.png`.
     fn window_screenshot(&self, ctx: &egui::Context) {
         let n = self.screenshots.fetch_add(1, Ordering::Relaxed);
         let path = self.out.join(format!("window-{n:03}.png"));
