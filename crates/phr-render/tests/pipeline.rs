@@ -489,6 +489,19 @@ fn a_tracer_keeping_the_film_shows_what_the_cpu_shows() {
         assert_eq!(bits(&on_device.image()), bits(&on_cpu.image()), "keep {keep}");
     }
     assert_eq!(accumulated.load(Ordering::Relaxed), 10);
+    // The normals are the CPU's; back in colour, the film goes to the device again.
+    on_device.keep_film_on_device(true);
+    for mode in [ViewMode::Normals, ViewMode::Colour] {
+        for p in [&mut on_device, &mut on_cpu] {
+            let mut settings = p.settings().clone();
+            settings.mode = mode;
+            p.set_settings(settings);
+            p.step(0.1);
+        }
+        assert_eq!(on_device.film_on_device(), mode == ViewMode::Colour, "{mode:?}");
+        assert_eq!(bits(&on_device.image()), bits(&on_cpu.image()), "{mode:?}");
+    }
+    assert_eq!(accumulated.load(Ordering::Relaxed), 11);
 }
 
 /// A tracer that fails is dropped, with a warning, and the CPU traces the frame instead.
