@@ -6,6 +6,7 @@
 use crate::device::Gpu;
 use crate::device::GpuError;
 use bytemuck::{Pod, Zeroable};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 const DISPLAY_WGSL: &str = include_str!("shaders/display.wgsl");
@@ -36,22 +37,44 @@ pub struct ShownImage {
 }
 
 /// The displayed image, shared between the [`crate::GpuFrames`] that write it and the window
-/// that draws it; empty until a frame has been kept on the device.
+/// that draws it; empty until a frame has been kept on the device. It is written only while
+/// someone watches it ([`Shown::watch`]).
 #[derive(Clone, Default)]
-pub struct Shown(Arc<Mutex<Option<ShownImage>>>);
+pub struct Shown {
+    image: Arc<Mutex<Option<ShownImage>>>,
+    watchers: Arc<AtomicUsize>,
+}
 
 impl Shown {
-    pub fn get(&self) -> Option<ShownImage> {
-        self.0.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    /// Watches the image (a window drawing it): written after every kept frame while any
+    /// [`Watching`] lives.
+    pub fn watch(&self) -> Watching {
+        self.watchers.fetch_add(1, Ordering::Relaxed);
+        Watching(self.clone())
     }
 
     pub(crate) fn set(&self, image: ShownImage) {
-        *self.0.lock().unwrap_or_else(|e| e.into_inner()) = Some(image);
+        *self.image.lock().unwrap_or_else(|e| e.into_inner()) = Some(image);
     }
 
-    /// Whether anyone but its writer holds it (a window): else the image is not written.
     pub(crate) fn watched(&self) -> bool {
-        Arc::strong_count(&self.0) > 1
+        self.watchers.load(Ordering::Relaxed) > 0
+    }
+}
+
+/// A watcher of a [`Shown`] image.
+pub struct Watching(Shown);
+
+impl Watching {
+    /// The image as last written, `None` before the first kept frame.
+    pub fn get(&self) -> Option<ShownImage> {
+        self.0.image.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+}
+
+impl Drop for Watching {
+    fn drop(&mut self) {
+        self.0.watchers.fetch_sub(1, Ordering::Relaxed);
     }
 }
 

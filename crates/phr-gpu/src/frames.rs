@@ -5,7 +5,7 @@
 //! and primitives of the parts that changed; timed apart, waited for). Each frame's samples
 //! are read back for the pipeline's film, or, for a window drawing with the same device, the
 //! GPU keeps the film ([`FrameTracer::accumulate`]) and writes the image to show into a
-//! texture ([`Shown`], written only while a window holds it): then only the ray count comes
+//! texture ([`Shown`], written only while a window watches it): then only the ray count comes
 //! back, and the film when it is asked for. (The kept film sums in single precision, as the
 //! GPU's renders do between their drains: rounding to nearest, of the order of 1e-5 of the
 //! mean after 100,000 frames.)

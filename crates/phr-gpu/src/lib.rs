@@ -31,7 +31,7 @@ pub mod scene;
 pub mod trace;
 
 pub use device::{Gpu, GpuError};
-pub use display::{Shown, ShownImage};
+pub use display::{Shown, ShownImage, Watching};
 pub use frames::GpuFrames;
 pub use queries::{GpuHit, HitQueries};
 pub use scene::GpuScene;

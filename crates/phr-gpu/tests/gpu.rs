@@ -727,7 +727,10 @@ fn the_kept_film_and_its_shown_image_are_the_read_back_ones() {
         version: 0,
     };
     let (mut kept, mut read_back) = (GpuFrames::new(gpu().clone()), GpuFrames::new(gpu().clone()));
-    let shown = kept.shown();
+    // Nobody watches: the film is kept, no image is written.
+    read_back.accumulate(&job(0), true).unwrap();
+    assert!(read_back.shown_pixels().is_err(), "an image written that nobody watches");
+    let shown = kept.shown().watch();
     assert!(shown.get().is_none(), "nothing shown before a frame is kept");
     let mut film = Film::new(width, height);
     for frame in 0..6 {
@@ -759,13 +762,23 @@ fn the_kept_film_and_its_shown_image_are_the_read_back_ones() {
     assert_shown(&kept, &restarted, "after a restart");
     // Another size: a new tracer, a new film and a new texture, shown once written.
     let resized = FrameJob { width: 40, height: 24, ..job(7) };
-    kept.accumulate(&resized, false).unwrap();
-    let one = read_back.trace(&resized).unwrap().pixels;
+    let k = kept.accumulate(&resized, false).unwrap();
+    let r = read_back.trace(&resized).unwrap();
+    assert_eq!(k.rays, r.rays, "another size");
     let film = kept.film().unwrap().mean();
-    assert_alike(&one, &film, 800, "the kept film of another size");
+    assert_alike(&r.pixels, &film, 800, "the kept film of another size");
     let image = shown.get().expect("shown");
     assert_eq!((image.width, image.height, image.texture_number), (40, 24, 2));
     assert_shown(&kept, &film, "another size");
+    // A frame traced alone in between (its sums cleared): the next kept frame starts the
+    // film again, even unasked.
+    kept.trace(&FrameJob { frame: 8, ..resized }).unwrap();
+    let k = kept.accumulate(&FrameJob { frame: 9, ..resized }, false).unwrap();
+    let r = read_back.trace(&FrameJob { frame: 9, ..resized }).unwrap();
+    assert_eq!(k.rays, r.rays, "after a frame traced alone");
+    let film = kept.film().unwrap().mean();
+    assert_alike(&r.pixels, &film, 800, "the kept film after a frame traced alone");
+    assert_shown(&kept, &film, "after a frame traced alone");
 }
 
 /// What `frames` shows is `film` encoded as the CPU's viewer encodes it, to one level in 255.

@@ -325,6 +325,8 @@ struct JobTracer {
     versions: Arc<std::sync::Mutex<Vec<u64>>>,
     fail_at: Option<u32>,
     keeps: bool,
+    /// Its film cannot be read back.
+    fail_film: bool,
     film: Option<Film>,
     accumulated: Arc<AtomicU32>,
     reads: Arc<AtomicU32>,
@@ -367,6 +369,9 @@ impl FrameTracer for JobTracer {
 
     fn film(&mut self) -> Result<Film, String> {
         self.reads.fetch_add(1, Ordering::Relaxed);
+        if self.fail_film {
+            return Err("lost".into());
+        }
         self.film.clone().ok_or_else(|| "no film yet".to_string())
     }
 }
@@ -536,5 +541,32 @@ fn a_failing_tracer_that_kept_the_film_starts_it_again() {
         assert_eq!(on_device.film_on_device(), frame < 2);
     }
     assert_eq!(on_device.samples(), 2);
+    assert_eq!(bits(&on_device.raw_image()), bits(&on_cpu.raw_image()));
+}
+
+/// A kept film that cannot be read back is lost with its device: the image asked for is of
+/// no samples (not a black one claiming them), and the CPU traces the film again.
+#[test]
+fn a_kept_film_that_cannot_be_read_starts_again_on_the_cpu() {
+    let tracer = JobTracer { keeps: true, fail_film: true, ..Default::default() };
+    let mut on_device = pipeline(Builder::PHR_FAST, true).with_tracer(Box::new(tracer));
+    on_device.keep_film_on_device(true);
+    on_device.playing = false;
+    for _ in 0..2 {
+        assert_eq!(on_device.step(0.1).device, "job");
+    }
+    on_device.image();
+    assert!(on_device.tracer().is_none(), "the device is dropped");
+    assert_eq!((on_device.samples(), on_device.film_on_device()), (0, false));
+    let mut on_cpu = pipeline(Builder::PHR_FAST, true);
+    on_cpu.playing = false;
+    for _ in 0..2 {
+        on_cpu.step(0.1);
+    }
+    // Frame 2, the first the CPU traced again.
+    on_cpu.restart();
+    let (a, b) = (on_device.step(0.1), on_cpu.step(0.1));
+    assert_eq!((a.device, a.samples), ("cpu", 1));
+    assert_eq!(b.samples, 1);
     assert_eq!(bits(&on_device.raw_image()), bits(&on_cpu.raw_image()));
 }

@@ -98,6 +98,7 @@ fn the_headless_viewer_reads_the_gpus_film_for_its_pngs_only() {
         args.extend(["--device", device, "--out", device]);
         let out = phr_within(&dir.0, &args, Duration::from_secs(300));
         assert_eq!(out.code, Some(0), "{}", out.stderr);
+        assert_eq!(out.stdout.contains("the gpu keeps the film"), device == "gpu", "{}", out.stdout);
     }
     let (cpu, gpu) = (Table::read(&dir.join("cpu/frames.csv")), Table::read(&dir.join("gpu/frames.csv")));
     for row in 0..4 {

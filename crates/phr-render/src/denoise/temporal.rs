@@ -68,7 +68,7 @@ impl Clone for Temporal {
 }
 
 impl Default for Temporal {
-    /// Three passes (15 pixels each way) rather than SVGF's five: with the history's samples
+    /// Three passes (14 pixels each way) rather than SVGF's five: with the history's samples
     /// the later passes only blurred (`tests/pipeline.rs`, the moving Cornell box, RMSE of the
     /// last frame: 0.00730 with five, 0.00696 with four, 0.00688 with three; the same frame
     /// with no history 0.0472 with four, 0.0473 with three, 0.0481 with two), and each costs

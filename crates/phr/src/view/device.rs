@@ -70,14 +70,14 @@ impl OnGpu {
 
     /// The image the GPU keeps, for the window to draw.
     pub fn shown_texture(&self) -> ShownTexture {
-        ShownTexture { shown: self.shown.clone(), registered: None }
+        ShownTexture { shown: self.shown.watch(), registered: None }
     }
 }
 
 /// The GPU's image as a texture of the window's renderer.
 pub struct ShownTexture {
     #[cfg(feature = "gpu")]
-    shown: phr_gpu::Shown,
+    shown: phr_gpu::Watching,
     /// The egui texture and the [`phr_gpu::ShownImage::texture_number`] it shows.
     #[cfg(feature = "gpu")]
     registered: Option<(eframe::egui::TextureId, u64)>,

@@ -53,10 +53,16 @@ fn frames(args: &ViewArgs, pipeline: &mut FramePipeline, csv: &mut impl Write) -
         Summary { times: Vec::with_capacity(args.frames as usize), peak_rss_at_100: 0.0, peak_rss_at_end: 0.0 };
     for frame in 0..args.frames {
         let r = pipeline.step(args.dt);
+        if frame == 0 && pipeline.film_on_device() {
+            println!("phr view: the {} keeps the film; it is read back for the PNGs only", r.device);
+        }
         if args.png_every > 0 && frame % args.png_every == 0 {
             let path = args.out.join(format!("frame{frame:05}.png"));
-            write_image(&path, width, height, &pipeline.image())
-                .with_context(|| format!("writing {}", path.display()))?;
+            let image = pipeline.image();
+            // A device whose film could not be read is dropped with it (and says so).
+            if pipeline.samples() > 0 {
+                write_image(&path, width, height, &image).with_context(|| format!("writing {}", path.display()))?;
+            }
         }
         // The kernel's high-water mark (VmHWM) can fall between reads (seen: 17.6 -> 17.4
         // MiB), so the peak column is the running maximum of what was read.
