@@ -514,6 +514,10 @@ impl FramePipeline {
         report.upload_bytes = traced.upload_bytes;
         report.device = device;
         let (pixels, rays) = (traced.pixels, traced.rays);
+        if self.film_on_device && self.tracer.is_none() {
+            // The device that kept the film failed: its samples went with it.
+            self.restart();
+        }
         if !self.film_on_device {
             self.film.add_frame(&pixels);
         }
@@ -797,11 +801,6 @@ impl FramePipeline {
                 Err(why) => {
                     eprintln!("warning: {} failed ({why}); the CPU traces from frame {frame} on", tracer.name());
                     self.tracer = None;
-                    if self.film_on_device {
-                        // Its samples are lost with it: the film starts again.
-                        self.film.clear();
-                        (self.samples, self.film_on_device, self.film_read) = (0, false, false);
-                    }
                 }
             }
         }
