@@ -78,6 +78,29 @@ fn image_region(path: &Path) -> Vec<f32> {
     out
 }
 
+/// The number of columns of [`image_region`] of `path`.
+fn image_region_width(path: &Path) -> usize {
+    let (w, _) = image::image_dimensions(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    (w - 300.min(w)) as usize
+}
+
+/// The means of the `size × size` blocks of an image of `width` columns (the partial blocks at
+/// the right and bottom edges left out).
+fn block_means(luminance: &[f32], width: usize, size: usize) -> Vec<f32> {
+    let height = luminance.len() / width.max(1);
+    let mut means = Vec::new();
+    for by in 0..height / size {
+        for bx in 0..width / size {
+            let sum: f32 = (0..size)
+                .flat_map(|y| (0..size).map(move |x| (by * size + y) * width + bx * size + x))
+                .map(|i| luminance[i])
+                .sum();
+            means.push(sum / (size * size) as f32);
+        }
+    }
+    means
+}
+
 fn mean_abs_diff(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.len().max(1) as f32
 }
@@ -198,6 +221,7 @@ fn viewer_under_xvfb(extra: &[&str]) {
     std::thread::sleep(Duration::from_secs(1));
     let still_b_path = screenshot(1);
     let still_b = image_region(&still_b_path);
+    let region_width = image_region_width(&still_b_path);
     assert!(std_dev(&still_a) > 10.0, "the image is blank (std dev {})", std_dev(&still_a));
     if extra.contains(&"none") {
         // The film as shown against the render saved from it (the same film a moment later):
@@ -221,26 +245,29 @@ fn viewer_under_xvfb(extra: &[&str]) {
     let (cx, cy) = (x + 300 + (w - 300) / 2, y + h / 2);
     let at = |dx: i32| format!("{}", cx + dx);
     let cy = format!("{cy}");
-    // Far enough that the change stands well above the noise of a slow device (lavapipe
-    // traced 6 frames a second, and a 150-pixel drag with a 0.4 s flight gave 13 against a
-    // noise of 4.5 in CI, one run in four).
-    xdotool(&display, &["mousemove", &at(-150), &cy, "mousedown", "1"]);
-    for dx in [-100, -50, 0, 50, 100, 150, 200] {
+    xdotool(&display, &["mousemove", &at(-60), &cy, "mousedown", "1"]);
+    for dx in [-30, 0, 30, 60, 90] {
         xdotool(&display, &["mousemove", &at(dx), &cy]);
         std::thread::sleep(Duration::from_millis(50));
     }
     xdotool(&display, &["mouseup", "1"]);
     xdotool(&display, &["keydown", "w"]);
-    std::thread::sleep(Duration::from_millis(800));
+    std::thread::sleep(Duration::from_millis(400));
     xdotool(&display, &["keyup", "w"]);
     std::thread::sleep(Duration::from_secs(2));
     let moved = image_region(&screenshot(2));
 
-    let noise = mean_abs_diff(&still_a, &still_b);
-    let change = mean_abs_diff(&still_b, &moved);
+    // Compared in 8×8-pixel blocks: a moved view moves whole edges and surfaces, while the
+    // noise of a still one mostly averages out. Per pixel, on a slow device (lavapipe, 6
+    // frames a second, where part of the input may fall between frames) the noise was 4.5
+    // against a change of 10–13 in one CI run of four; in blocks the noise is at most 1.5
+    // and the change 10–38 (measured over 18 runs of the three tests).
+    let blocks = |luminance: &[f32]| block_means(luminance, region_width, 8);
+    let noise = mean_abs_diff(&blocks(&still_a), &blocks(&still_b));
+    let change = mean_abs_diff(&blocks(&still_b), &blocks(&moved));
     println!("change {change}, noise {noise}");
     assert!(std_dev(&moved) > 10.0, "the image went blank after input");
-    assert!(change > 8.0 && change > 3.0 * noise, "input did not change the view: {change} vs noise {noise}");
+    assert!(change > 5.0 && change > 3.0 * noise, "input did not change the view: {change} vs noise {noise}");
     let said = std::fs::read_to_string(&stderr).unwrap_or_default();
     if extra.contains(&"gpu") {
         // The GPU traced the frames throughout (a failing device is dropped with a warning).
