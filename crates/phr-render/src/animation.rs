@@ -277,7 +277,10 @@ impl PosedMesh {
         geometry.triangles[self.triangles.clone()]
             .par_iter_mut()
             .zip(&self.indices)
-            .for_each(|(tri, idx)| *tri = idx.map(|k| posed[k as usize]));
+            // Indexed corner by corner: `idx.map(|k| posed[k])` went through an out-of-line
+            // `array::try_map` per triangle and took 6.0 ms of the 871k-triangle dragon's
+            // frame on 2 threads, against 2.6 ms this way.
+            .for_each(|(tri, &[a, b, c])| *tri = [posed[a as usize], posed[b as usize], posed[c as usize]]);
     }
 
     /// The map from its rest pose at time `t`, if it moves rigidly as a whole. (A glTF node
