@@ -64,8 +64,8 @@ fn xdotool(display: &str, args: &[&str]) -> String {
 }
 
 /// The rendered image's part of a window screenshot (right of the 280-pixel side panel), as
-/// luminance values.
-fn image_region(path: &Path) -> Vec<f32> {
+/// luminance values, and its width.
+fn image_region(path: &Path) -> (usize, Vec<f32>) {
     let img = image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())).to_rgb8();
     let (w, h) = img.dimensions();
     let mut out = Vec::new();
@@ -75,13 +75,7 @@ fn image_region(path: &Path) -> Vec<f32> {
             out.push(0.2126 * p[0] as f32 + 0.7152 * p[1] as f32 + 0.0722 * p[2] as f32);
         }
     }
-    out
-}
-
-/// The number of columns of [`image_region`] of `path`.
-fn image_region_width(path: &Path) -> usize {
-    let (w, _) = image::image_dimensions(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    (w - 300.min(w)) as usize
+    ((w - 300.min(w)) as usize, out)
 }
 
 /// The means of the `size × size` blocks of an image of `width` columns (the partial blocks at
@@ -217,11 +211,10 @@ fn viewer_under_xvfb(extra: &[&str]) {
     };
     // Let it accumulate, then two screenshots of the still view: their difference is noise.
     std::thread::sleep(Duration::from_secs(2));
-    let still_a = image_region(&screenshot(0));
+    let (width, still_a) = image_region(&screenshot(0));
     std::thread::sleep(Duration::from_secs(1));
     let still_b_path = screenshot(1);
-    let still_b = image_region(&still_b_path);
-    let region_width = image_region_width(&still_b_path);
+    let still_b = image_region(&still_b_path).1;
     assert!(std_dev(&still_a) > 10.0, "the image is blank (std dev {})", std_dev(&still_a));
     if extra.contains(&"none") {
         // The film as shown against the render saved from it (the same film a moment later):
@@ -255,14 +248,16 @@ fn viewer_under_xvfb(extra: &[&str]) {
     std::thread::sleep(Duration::from_millis(400));
     xdotool(&display, &["keyup", "w"]);
     std::thread::sleep(Duration::from_secs(2));
-    let moved = image_region(&screenshot(2));
+    let (moved_width, moved) = image_region(&screenshot(2));
 
     // Compared in 8×8-pixel blocks: a moved view moves whole edges and surfaces, while the
     // noise of a still one mostly averages out. Per pixel, on a slow device (lavapipe, 6
-    // frames a second, where part of the input may fall between frames) the noise was 4.5
-    // against a change of 10–13 in one CI run of four; in blocks the noise is at most 1.5
-    // and the change 10–38 (measured over 18 runs of the three tests).
-    let blocks = |luminance: &[f32]| block_means(luminance, region_width, 8);
+    // frames a second, where part of the input may fall between frames) the noise reached
+    // 4.5 against changes of 10–13, under the 3× bar in one CI run of four; in blocks the
+    // noise was at most 1.5 and the change 10–38 (nine runs of the three tests).
+    let lengths = [still_a.len(), still_b.len(), moved.len()];
+    assert!(moved_width == width && lengths.iter().all(|&n| n == lengths[0]), "the window changed its size");
+    let blocks = |luminance: &[f32]| block_means(luminance, width, 8);
     let noise = mean_abs_diff(&blocks(&still_a), &blocks(&still_b));
     let change = mean_abs_diff(&blocks(&still_b), &blocks(&moved));
     println!("change {change}, noise {noise}");
