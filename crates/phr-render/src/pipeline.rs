@@ -912,6 +912,14 @@ impl FramePipeline {
         }
     }
 
+    /// [`FramePipeline::image`] for a file: `None` while the film holds no samples (nothing
+    /// traced yet, or a device's kept film that could not be read back, which drops the
+    /// device and starts the film again), rather than a black image.
+    pub fn image_to_save(&mut self) -> Option<Vec<Vec3>> {
+        let image = self.image();
+        (self.samples > 0).then_some(image)
+    }
+
     /// The film's mean, never denoised.
     pub fn raw_image(&mut self) -> Vec<Vec3> {
         self.read_film();

@@ -558,6 +558,7 @@ fn a_kept_film_that_cannot_be_read_starts_again_on_the_cpu() {
     on_device.image();
     assert!(on_device.tracer().is_none(), "the device is dropped");
     assert_eq!((on_device.samples(), on_device.film_on_device()), (0, false));
+    assert!(on_device.image_to_save().is_none(), "an image of no samples to save");
     let mut on_cpu = pipeline(Builder::PHR_FAST, true);
     on_cpu.playing = false;
     for _ in 0..2 {

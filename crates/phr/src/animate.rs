@@ -118,9 +118,9 @@ pub fn run(args: &AnimateArgs) -> Result<()> {
     let mut rows = Vec::new();
     for frame in 0..args.frames {
         let report = pipeline.step(FRAME_DT);
-        if args.png {
+        if let Some(image) = args.png.then(|| pipeline.image_to_save()).flatten() {
             let path = args.out.join(format!("frame{frame:05}.png"));
-            write_image(&path, args.width, args.height, &pipeline.image())
+            write_image(&path, args.width, args.height, &image)
                 .with_context(|| format!("writing {}", path.display()))?;
         }
         progress.set_message(format!("{:.1} ms/frame", report.frame_ms));

@@ -254,7 +254,7 @@ fn viewer_under_xvfb(extra: &[&str]) {
     // noise of a still one mostly averages out. Per pixel, on a slow device (lavapipe, 6
     // frames a second, where part of the input may fall between frames) the noise reached
     // 4.5 against changes of 10–13, under the 3× bar in one CI run of four; in blocks the
-    // noise was at most 1.5 and the change 10–38 (nine runs of the three tests).
+    // noise was at most 1.5 and the change 10–38 (twelve runs of the three tests).
     let lengths = [still_a.len(), still_b.len(), moved.len()];
     assert!(moved_width == width && lengths.iter().all(|&n| n == lengths[0]), "the window changed its size");
     let blocks = |luminance: &[f32]| block_means(luminance, width, 8);

@@ -58,9 +58,7 @@ fn frames(args: &ViewArgs, pipeline: &mut FramePipeline, csv: &mut impl Write) -
         }
         if args.png_every > 0 && frame % args.png_every == 0 {
             let path = args.out.join(format!("frame{frame:05}.png"));
-            let image = pipeline.image();
-            // A device whose film could not be read is dropped with it (and says so).
-            if pipeline.samples() > 0 {
+            if let Some(image) = pipeline.image_to_save() {
                 write_image(&path, width, height, &image).with_context(|| format!("writing {}", path.display()))?;
             }
         }

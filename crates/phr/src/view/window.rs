@@ -709,11 +709,9 @@ fn worker(mut pipeline: FramePipeline, shared: Arc<Shared>, ctx: egui::Context, 
 
 fn save_render(pipeline: &mut FramePipeline, out: &std::path::Path, saved: &mut u32) -> String {
     let (w, h) = (pipeline.settings().width, pipeline.settings().height);
-    let image = pipeline.image();
-    if pipeline.samples() == 0 {
-        // The device's film could not be read back (it said why), or nothing is traced yet.
+    let Some(image) = pipeline.image_to_save() else {
         return "nothing to save yet".to_string();
-    }
+    };
     let stem = out.join(format!("render-{:03}", *saved));
     *saved += 1;
     for ext in ["png", "exr"] {
