@@ -81,8 +81,11 @@ const MAX_LANES: usize = 16;
 const OFF_SURFACE: [f32; 5] = [0.0, 0.0, 0.0, 0.0, f32::INFINITY];
 
 /// `K` planes of `width` values a row with `pad` values of `fill` on each side of every row,
-/// pixel `i`'s values from `value(i)`: one pass over the rows, in parallel.
+/// pixel `i`'s values from `value(i)`: one pass over the rows, in parallel. `memory`'s
+/// planes are written over if they were made for the same layout and fill (their padding
+/// is then already `fill`: nothing writes there), else new ones are made.
 fn padded_planes<const K: usize>(
+    memory: Option<[Vec<f32>; K]>,
     rows: usize,
     width: usize,
     pad: usize,
@@ -90,7 +93,9 @@ fn padded_planes<const K: usize>(
     value: impl Fn(usize) -> [f32; K] + Sync,
 ) -> [Vec<f32>; K] {
     let stride = width + 2 * pad;
-    let mut planes = fill.map(|f| vec![f; stride * rows]);
+    let mut planes = memory
+        .filter(|planes| planes.iter().all(|p| p.len() == stride * rows))
+        .unwrap_or_else(|| fill.map(|f| vec![f; stride * rows]));
     if stride == 0 {
         return planes;
     }
@@ -128,13 +133,31 @@ pub(crate) struct GuidePlanes {
 impl GuidePlanes {
     /// The planes for up to `passes` passes.
     pub fn new(guide: &Guide, passes: u32) -> Self {
+        Self::reusing(None, guide, passes)
+    }
+
+    /// [`GuidePlanes::new`], in `memory`'s planes if it has the same layout (a filter
+    /// that runs every frame need not allocate and clear them again).
+    pub fn reusing(memory: Option<Self>, guide: &Guide, passes: u32) -> Self {
         let (width, height) = (guide.width as usize, guide.height as usize);
         let pad = padding(passes, width);
-        let [nx, ny, nz, px, py, pz, footprint_padded] = padded_planes(height, width, pad, [0.0; 7], |i| {
+        let memory = memory.filter(|m| (m.width, m.height, m.pad) == (width, height, pad));
+        let (old_planes, mut footprint, mut surface_blurred) = match memory {
+            Some(m) => {
+                let [nx, ny, nz] = m.normal;
+                let [px, py, pz] = m.position;
+                (Some([nx, ny, nz, px, py, pz, m.footprint_padded]), m.footprint, m.surface_blurred)
+            }
+            None => (None, Vec::new(), Vec::new()),
+        };
+        let [nx, ny, nz, px, py, pz, footprint_padded] = padded_planes(old_planes, height, width, pad, [0.0; 7], |i| {
             let (n, p) = (guide.normal[i], guide.position[i]);
             [n.x, n.y, n.z, p.x, p.y, p.z, guide.footprint[i]]
         });
+        footprint.clone_from(&guide.footprint);
         let surface: Vec<f32> = guide.footprint.par_iter().map(|f| if *f > 0.0 { 1.0 } else { 0.0 }).collect();
+        surface_blurred.resize(width * height, 0.0);
+        blur_3x3_into(&surface, width, height, 0, &mut surface_blurred, |_, sum| sum);
         Self {
             width,
             height,
@@ -142,13 +165,9 @@ impl GuidePlanes {
             stride: width + 2 * pad,
             normal: [nx, ny, nz],
             position: [px, py, pz],
-            footprint: guide.footprint.clone(),
+            footprint,
             footprint_padded,
-            surface_blurred: {
-                let mut blurred = vec![0.0; width * height];
-                blur_3x3_into(&surface, width, height, 0, &mut blurred, |_, sum| sum);
-                blurred
-            },
+            surface_blurred,
         }
     }
 }
@@ -176,10 +195,23 @@ impl Signal {
     /// The signal whose pixel `i` has the illumination and luminance variance `pixel(i)`,
     /// laid out for `guide`.
     pub fn from_fn(guide: &GuidePlanes, pixel: impl Fn(usize) -> (Vec3, f32) + Sync) -> Self {
+        Self::from_fn_reusing(None, guide, pixel)
+    }
+
+    /// [`Signal::from_fn`], in `memory`'s planes if it was laid out for `guide`.
+    pub fn from_fn_reusing(
+        memory: Option<Self>,
+        guide: &GuidePlanes,
+        pixel: impl Fn(usize) -> (Vec3, f32) + Sync,
+    ) -> Self {
         let (w, h, pad) = (guide.width, guide.height, guide.pad);
+        let memory = memory.filter(|m| m.fits(guide)).map(|m| {
+            let [r, g, b] = m.colour;
+            [r, g, b, m.var, m.lum]
+        });
         // Taps are surface pixels with a finite estimate; the others hold 0 (a NaN or an
         // infinity times a tap's weight of 0 would still spread) and an infinite luminance.
-        let [r, g, b, var, lum] = padded_planes(h, w, pad, OFF_SURFACE, |i| {
+        let [r, g, b, var, lum] = padded_planes(memory, h, w, pad, OFF_SURFACE, |i| {
             if guide.footprint[i] > 0.0 {
                 let (c, v) = pixel(i);
                 // (`max` also makes NaN 0.)
@@ -194,13 +226,18 @@ impl Signal {
 
     /// The pixels, row-major, without the padding, into `out`.
     pub fn pixels_into(&self, out: &mut [Vec3]) {
+        self.pixels_into_with(out, |_, p| p);
+    }
+
+    /// Pixel `i`'s value `p` as `finish(i, p)`, row-major, into `out`.
+    pub fn pixels_into_with(&self, out: &mut [Vec3], finish: impl Fn(usize, Vec3) -> Vec3 + Sync) {
         let (w, stride) = (self.width, self.width + 2 * self.pad);
         assert_eq!(out.len(), self.pixel_count(), "one value per pixel");
         out.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
             let j = y * stride + self.pad;
             let [r, g, b] = &self.colour;
             for (x, p) in row.iter_mut().enumerate() {
-                *p = Vec3::new(r[j + x], g[j + x], b[j + x]);
+                *p = finish(y * w + x, Vec3::new(r[j + x], g[j + x], b[j + x]));
             }
         });
     }
@@ -215,6 +252,14 @@ impl Signal {
     fn pixel_count(&self) -> usize {
         self.colour[0].len() / (self.width + 2 * self.pad) * self.width
     }
+}
+
+/// Memory an [`Atrous::filter_in`] keeps for the next: the planes a pass writes into, and
+/// the blurred variance's.
+#[derive(Default)]
+pub(crate) struct FilterMemory {
+    spare: Option<Signal>,
+    blurred: Vec<f32>,
 }
 
 /// What [`Atrous::row`] reads: the guide, the pass's signal and blurred variance, the row and
@@ -247,29 +292,38 @@ impl Atrous {
     /// (SVGF keeps it as the temporal history). `guide` must have been made for at least
     /// this filter's passes, and `signal` laid out for it (its memory takes a later pass's
     /// output).
-    pub(crate) fn filter(
+    pub(crate) fn filter(&self, guide: &GuidePlanes, signal: Signal, after_first: impl FnMut(&Signal)) -> Signal {
+        self.filter_in(guide, signal, &mut FilterMemory::default(), after_first)
+    }
+
+    /// [`Atrous::filter`], taking the planes its passes write into from `memory` (when they
+    /// fit the guide) and leaving them there for the next call.
+    pub(crate) fn filter_in(
         &self,
         guide: &GuidePlanes,
         mut signal: Signal,
+        memory: &mut FilterMemory,
         mut after_first: impl FnMut(&Signal),
     ) -> Signal {
         // Each pass writes into the planes the pass before it read: one signal's memory more
         // for the whole filter, not one per pass.
         assert!(signal.fits(guide), "the signal was laid out for another guide");
-        let mut spare: Option<Signal> = None;
-        let mut blurred = vec![0.0; guide.stride * guide.height];
+        let mut spare = memory.spare.take().filter(|s| s.fits(guide));
+        let blurred = &mut memory.blurred;
+        blurred.resize(guide.stride * guide.height, 0.0);
         for pass in 0..self.passes {
             // Steps this wide are wider than any image: the passes left would keep only their
             // centre taps.
             let Some(step) = 1usize.checked_shl(pass).filter(|s| *s <= isize::MAX as usize / 4) else { break };
             let mut out = spare.take().unwrap_or_else(|| Signal::empty(guide));
-            blurred_variance(guide, &signal, &mut blurred);
-            self.pass(guide, &signal, &blurred, step, &mut out);
+            blurred_variance(guide, &signal, blurred);
+            self.pass(guide, &signal, blurred, step, &mut out);
             spare = Some(std::mem::replace(&mut signal, out));
             if pass == 0 {
                 after_first(&signal);
             }
         }
+        memory.spare = spare;
         signal
     }
 

@@ -170,7 +170,7 @@ impl Guide {
                 centre.light |= first.light;
             }
             centre.albedo = albedo / samples.max(1) as f32;
-            guide_pixel(camera, i % w, i / w, &centre)
+            guide_pixel(&camera.ray(x + 0.5, y + 0.5), camera.ray(x + 1.5, y + 0.5).dir, &centre)
         })
     }
 
@@ -178,12 +178,29 @@ impl Guide {
     /// [`crate::render::Renderer::render_frame_guided`] returns them, row-major).
     pub fn from_first_hits(camera: &Camera, width: u32, height: u32, hits: &[FirstHit]) -> Guide {
         assert_eq!(hits.len(), (width * height) as usize, "one first hit per pixel");
-        Self::from_fn(width, height, |i| guide_pixel(camera, i % width, i / width, &hits[i as usize]))
+        Self::from_rows(width, height, |y, row| {
+            // The ray beside a pixel's centre is the next pixel's centre ray: each is made once.
+            let mut beside = camera.ray(0.5, y as f32 + 0.5);
+            for (x, pixel) in row.iter_mut().enumerate() {
+                let centre = beside;
+                beside = camera.ray(x as f32 + 1.5, y as f32 + 0.5);
+                *pixel = guide_pixel(&centre, beside.dir, &hits[y as usize * width as usize + x]);
+            }
+        })
     }
 
     /// The guide whose pixel `i` has the albedo, normal, position and footprint `pixel(i)`;
     /// rows in parallel.
-    fn from_fn(width: u32, height: u32, pixel: impl Fn(u32) -> (Vec3, Vec3, Vec3, f32) + Sync) -> Guide {
+    fn from_fn(width: u32, height: u32, pixel: impl Fn(u32) -> GuidePixel + Sync) -> Guide {
+        Self::from_rows(width, height, |y, row| {
+            for (x, value) in row.iter_mut().enumerate() {
+                *value = pixel(y * width + x as u32);
+            }
+        })
+    }
+
+    /// The guide whose row `y` `row(y, pixels)` writes, rows in parallel.
+    fn from_rows(width: u32, height: u32, row: impl Fn(u32, &mut [GuidePixel]) + Sync) -> Guide {
         let n = (width * height) as usize;
         let mut guide = Guide {
             width,
@@ -200,26 +217,32 @@ impl Guide {
             guide.position.par_chunks_mut(w),
             guide.footprint.par_chunks_mut(w),
         );
-        rows.into_par_iter().enumerate().for_each(|(y, (albedo, normal, position, footprint))| {
-            for x in 0..albedo.len() {
-                (albedo[x], normal[x], position[x], footprint[x]) = pixel((y * w + x) as u32);
-            }
-        });
+        rows.into_par_iter().enumerate().for_each_init(
+            Vec::new,
+            |pixels, (y, (albedo, normal, position, footprint))| {
+                pixels.resize(albedo.len(), (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, 0.0));
+                row(y as u32, pixels);
+                for (x, &(a, n, p, f)) in pixels.iter().enumerate() {
+                    (albedo[x], normal[x], position[x], footprint[x]) = (a, n, p, f);
+                }
+            },
+        );
         guide
     }
 }
 
-/// Pixel `(x, y)`'s albedo, normal, position and footprint (the width of a pixel at the
-/// hit's distance) from its first hit.
-fn guide_pixel(camera: &Camera, x: u32, y: u32, hit: &FirstHit) -> (Vec3, Vec3, Vec3, f32) {
+/// A pixel of a [`Guide`]: its albedo, normal, position and footprint.
+type GuidePixel = (Vec3, Vec3, Vec3, f32);
+
+/// A pixel's albedo, normal, position and footprint (the width of a pixel at the hit's
+/// distance) from its first hit, the camera ray through its centre and the direction of
+/// the ray one pixel to the right.
+fn guide_pixel(centre: &phr_bvh::Ray, beside: Vec3, hit: &FirstHit) -> GuidePixel {
     if hit.light || hit.normal == Vec3::ZERO {
         // A light's pixels, its edges included, are exact but for their coverage noise, and
         // far brighter than what surrounds them: never filtered; nor is the sky.
         return (hit.albedo, Vec3::ZERO, Vec3::ZERO, 0.0);
     }
-    let (x, y) = (x as f32, y as f32);
-    let centre = camera.ray(x + 0.5, y + 0.5);
-    let beside = camera.ray(x + 1.5, y + 0.5).dir;
     let footprint = (hit.position - centre.origin).length() * (beside - centre.dir).length();
     (hit.albedo, hit.normal, hit.position, footprint)
 }

@@ -13,7 +13,7 @@
 //! filter the blended illumination with that variance, and the first pass's output becomes the
 //! history (SVGF's choice: the history is smoother, so the image is steadier).
 
-use super::atrous::{luminance, Atrous, GuidePlanes, Signal, MIN_ALBEDO};
+use super::atrous::{luminance, Atrous, FilterMemory, GuidePlanes, Signal, MIN_ALBEDO};
 use super::Guide;
 use crate::camera::Camera;
 use glam::Vec3;
@@ -58,12 +58,35 @@ pub struct Temporal {
     history: Option<History>,
     /// The history before that, whose memory the next frame's history reuses.
     spare: Option<History>,
+    /// The spatial filter's planes, which the next frame reuses.
+    memory: Memory,
+}
+
+/// The planes a frame's filtering writes, kept for the next frame's: at 256² they are 5 MB,
+/// which would otherwise be allocated and cleared again every frame.
+#[derive(Default)]
+struct Memory {
+    planes: Option<GuidePlanes>,
+    signal: Option<Signal>,
+    filter: FilterMemory,
+}
+
+impl std::fmt::Debug for Memory {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Memory").finish_non_exhaustive()
+    }
 }
 
 impl Clone for Temporal {
     /// The filter and its history (not the spare memory).
     fn clone(&self) -> Self {
-        Self { atrous: self.atrous, min_alpha: self.min_alpha, history: self.history.clone(), spare: None }
+        Self {
+            atrous: self.atrous,
+            min_alpha: self.min_alpha,
+            history: self.history.clone(),
+            spare: None,
+            memory: Memory::default(),
+        }
     }
 }
 
@@ -74,7 +97,13 @@ impl Default for Temporal {
     /// with no history 0.0472 with four, 0.0473 with three, 0.0481 with two), and each costs
     /// a quarter of the filter's time.
     fn default() -> Self {
-        Self { atrous: Atrous { passes: 3, ..Atrous::default() }, min_alpha: 0.1, history: None, spare: None }
+        Self {
+            atrous: Atrous { passes: 3, ..Atrous::default() },
+            min_alpha: 0.1,
+            history: None,
+            spare: None,
+            memory: Memory::default(),
+        }
     }
 }
 
@@ -148,18 +177,24 @@ impl Temporal {
                 (*blended_illumination, *moments, *length) = (blended.illumination, blended.moments, blended.length);
             }
         });
-        let planes = GuidePlanes::new(guide, self.atrous.passes);
-        let signal = Signal::from_fn(&planes, |i| (next.illumination[i], self.variance(guide, &next, i)));
-        let out = self.atrous.filter(&planes, signal, |first| first.pixels_into(&mut next.illumination)).pixels();
+        let mut memory = std::mem::take(&mut self.memory);
+        let planes = GuidePlanes::reusing(memory.planes.take(), guide, self.atrous.passes);
+        let signal = Signal::from_fn_reusing(memory.signal.take(), &planes, |i| {
+            (next.illumination[i], self.variance(guide, &next, i))
+        });
+        let filtered = self
+            .atrous
+            .filter_in(&planes, signal, &mut memory.filter, |first| first.pixels_into(&mut next.illumination));
+        let mut out = vec![Vec3::ZERO; w * h];
+        filtered.pixels_into_with(&mut out, |i, p| if guide.footprint[i] > 0.0 { p * albedo(i) } else { colour[i] });
+        (memory.planes, memory.signal) = (Some(planes), Some(filtered));
+        self.memory = memory;
         next.camera.clone_from(camera);
         next.normal.copy_from_slice(&guide.normal);
         next.position.copy_from_slice(&guide.position);
         self.spare = history;
         self.history = Some(next);
-        (0..w * h)
-            .into_par_iter()
-            .map(|i| if guide.footprint[i] > 0.0 { out[i] * albedo(i) } else { colour[i] })
-            .collect()
+        out
     }
 
     /// Pixel `i`'s illumination (this frame's sample over its albedo) blended into its
@@ -335,6 +370,39 @@ mod tests {
                 let centre = (H / 2 * W + W / 2) as usize;
                 assert!(temporal.history_length(centre) > 10.0, "history {}", temporal.history_length(centre));
             }
+        }
+    }
+
+    /// The planes kept from the last frame (and from a frame of another size before it) give
+    /// the same image, to the bit, as planes made afresh (by a clone, which keeps the history
+    /// but not the memory), while the surfaces change from frame to frame.
+    #[test]
+    fn reused_memory_changes_nothing() {
+        let mut rng = Pcg32::new(11, 1);
+        let mut temporal = Temporal::default();
+        let small = Guide { width: W / 2, height: H / 2, ..view(0.0).1 };
+        let small = Guide {
+            albedo: small.albedo[..(W * H / 4) as usize].to_vec(),
+            normal: small.normal[..(W * H / 4) as usize].to_vec(),
+            position: small.position[..(W * H / 4) as usize].to_vec(),
+            footprint: small.footprint[..(W * H / 4) as usize].to_vec(),
+            ..small
+        };
+        temporal.denoise(&frame(&small, |_| 0.4, 0.2, &mut rng), &small, &view(0.0).0);
+        for step in 0..4 {
+            let (camera, mut guide) = view(step as f32 * 0.2);
+            // A band of sky that moves from frame to frame.
+            for i in (0..(W * H) as usize).filter(|i| (i % W as usize).abs_diff(8 * step + 4) < 3) {
+                (guide.normal[i], guide.position[i], guide.footprint[i]) = (Vec3::ZERO, Vec3::ZERO, 0.0);
+            }
+            let colour = frame(&guide, |x| 0.3 + 0.02 * x, 0.3, &mut rng);
+            let mut fresh = temporal.clone();
+            let reused = temporal.denoise(&colour, &guide, &camera);
+            let made = fresh.denoise(&colour, &guide, &camera);
+            assert!(reused
+                .iter()
+                .zip(&made)
+                .all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)));
         }
     }
 
