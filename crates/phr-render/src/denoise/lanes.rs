@@ -35,6 +35,8 @@ pub(crate) trait Lanes: Copy {
     /// `self > o` (false for NaN).
     unsafe fn gt(self, o: Self) -> Self::Mask;
     unsafe fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// Whether `m` holds in any lane.
+    unsafe fn any(m: Self::Mask) -> bool;
     /// The lanes of `self` where `m` holds, 0 elsewhere.
     unsafe fn keep(self, m: Self::Mask) -> Self;
     /// The lanes of `self` where `m` holds, those of `other` elsewhere.
@@ -141,6 +143,10 @@ impl Lanes for Scalar {
         a & b
     }
     #[inline(always)]
+    unsafe fn any(m: bool) -> bool {
+        m
+    }
+    #[inline(always)]
     unsafe fn keep(self, m: bool) -> Self {
         if m {
             self
@@ -240,6 +246,10 @@ mod x86 {
             unsafe { _mm256_and_ps(a, b) }
         }
         #[inline(always)]
+        unsafe fn any(m: __m256) -> bool {
+            unsafe { _mm256_movemask_ps(m) != 0 }
+        }
+        #[inline(always)]
         unsafe fn keep(self, m: __m256) -> Self {
             Self(unsafe { _mm256_and_ps(self.0, m) })
         }
@@ -317,6 +327,10 @@ mod x86 {
         #[inline(always)]
         unsafe fn and(a: __mmask16, b: __mmask16) -> __mmask16 {
             a & b
+        }
+        #[inline(always)]
+        unsafe fn any(m: __mmask16) -> bool {
+            m != 0
         }
         #[inline(always)]
         unsafe fn keep(self, m: __mmask16) -> Self {
