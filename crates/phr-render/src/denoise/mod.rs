@@ -178,13 +178,14 @@ impl Guide {
     /// [`crate::render::Renderer::render_frame_guided`] returns them, row-major).
     pub fn from_first_hits(camera: &Camera, width: u32, height: u32, hits: &[FirstHit]) -> Guide {
         assert_eq!(hits.len(), (width * height) as usize, "one first hit per pixel");
-        Self::from_rows(width, height, |y, row| {
+        Self::from_rows(width, height, |y, mut row| {
+            let hits = &hits[y as usize * width as usize..][..width as usize];
             // The ray beside a pixel's centre is the next pixel's centre ray: each is made once.
             let mut beside = camera.ray(0.5, y as f32 + 0.5);
-            for (x, pixel) in row.iter_mut().enumerate() {
+            for (x, hit) in hits.iter().enumerate() {
                 let centre = beside;
                 beside = camera.ray(x as f32 + 1.5, y as f32 + 0.5);
-                *pixel = guide_pixel(&centre, beside.dir, &hits[y as usize * width as usize + x]);
+                row.set(x, guide_pixel(&centre, beside.dir, hit));
             }
         })
     }
@@ -192,15 +193,15 @@ impl Guide {
     /// The guide whose pixel `i` has the albedo, normal, position and footprint `pixel(i)`;
     /// rows in parallel.
     fn from_fn(width: u32, height: u32, pixel: impl Fn(u32) -> GuidePixel + Sync) -> Guide {
-        Self::from_rows(width, height, |y, row| {
-            for (x, value) in row.iter_mut().enumerate() {
-                *value = pixel(y * width + x as u32);
+        Self::from_rows(width, height, |y, mut row| {
+            for x in 0..width {
+                row.set(x as usize, pixel(y * width + x));
             }
         })
     }
 
-    /// The guide whose row `y` `row(y, pixels)` writes, rows in parallel.
-    fn from_rows(width: u32, height: u32, row: impl Fn(u32, &mut [GuidePixel]) + Sync) -> Guide {
+    /// The guide whose row `y` `row(y, its pixels)` writes, rows in parallel.
+    fn from_rows(width: u32, height: u32, row: impl Fn(u32, GuideRow) + Sync) -> Guide {
         let n = (width * height) as usize;
         let mut guide = Guide {
             width,
@@ -217,22 +218,29 @@ impl Guide {
             guide.position.par_chunks_mut(w),
             guide.footprint.par_chunks_mut(w),
         );
-        rows.into_par_iter().enumerate().for_each_init(
-            Vec::new,
-            |pixels, (y, (albedo, normal, position, footprint))| {
-                pixels.resize(albedo.len(), (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, 0.0));
-                row(y as u32, pixels);
-                for (x, &(a, n, p, f)) in pixels.iter().enumerate() {
-                    (albedo[x], normal[x], position[x], footprint[x]) = (a, n, p, f);
-                }
-            },
-        );
+        rows.into_par_iter().enumerate().for_each(|(y, (albedo, normal, position, footprint))| {
+            row(y as u32, GuideRow { albedo, normal, position, footprint });
+        });
         guide
     }
 }
 
 /// A pixel of a [`Guide`]: its albedo, normal, position and footprint.
 type GuidePixel = (Vec3, Vec3, Vec3, f32);
+
+/// A row of a [`Guide`] being made.
+struct GuideRow<'a> {
+    albedo: &'a mut [Vec3],
+    normal: &'a mut [Vec3],
+    position: &'a mut [Vec3],
+    footprint: &'a mut [f32],
+}
+
+impl GuideRow<'_> {
+    fn set(&mut self, x: usize, (albedo, normal, position, footprint): GuidePixel) {
+        (self.albedo[x], self.normal[x], self.position[x], self.footprint[x]) = (albedo, normal, position, footprint);
+    }
+}
 
 /// A pixel's albedo, normal, position and footprint (the width of a pixel at the hit's
 /// distance) from its first hit, the camera ray through its centre and the direction of

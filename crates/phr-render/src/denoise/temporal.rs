@@ -179,8 +179,11 @@ impl Temporal {
         });
         let mut memory = std::mem::take(&mut self.memory);
         let planes = GuidePlanes::reusing(memory.planes.take(), guide, self.atrous.passes);
+        // The distances of the 7×7 neighbours of a short history's variance, in pixels, by |dy| and |dx|.
+        let offsets: [[f32; 4]; 4] =
+            std::array::from_fn(|dy| std::array::from_fn(|dx| (((dx * dx + dy * dy) as f32).sqrt()).max(1.0)));
         let signal = Signal::from_fn_reusing(memory.signal.take(), &planes, |i| {
-            (next.illumination[i], self.variance(guide, &next, i))
+            (next.illumination[i], self.variance(guide, &next, &offsets, i))
         });
         let filtered = self
             .atrous
@@ -222,8 +225,9 @@ impl Temporal {
 
     /// The variance of pixel `i`'s blended estimate (its moments and history length in
     /// `next`, the history being made): the sample variance from its moments (or its
-    /// neighbours' on a short history) times the blend's share of one sample.
-    fn variance(&self, guide: &Guide, next: &History, i: usize) -> f32 {
+    /// neighbours' on a short history, `offsets[|dy|][|dx|]` pixels away) times the
+    /// blend's share of one sample.
+    fn variance(&self, guide: &Guide, next: &History, offsets: &[[f32; 4]; 4], i: usize) -> f32 {
         let (w, h) = (guide.width as i64, guide.height as i64);
         let length = next.length[i];
         if length <= 0.0 {
@@ -240,7 +244,7 @@ impl Temporal {
             for qy in (y - 3).max(0)..(y + 4).min(h) {
                 for qx in (x - 3).max(0)..(x + 4).min(w) {
                     let j = (qy * w + qx) as usize;
-                    let offset = (((qx - x).pow(2) + (qy - y).pow(2)) as f32).sqrt().max(1.0);
+                    let offset = offsets[(qy - y).unsigned_abs() as usize][(qx - x).unsigned_abs() as usize];
                     if next.length[j] <= 0.0 || !same_surface(n, p, f, guide.normal[j], guide.position[j], offset) {
                         continue;
                     }
