@@ -175,17 +175,17 @@ impl Renderer<'_> {
     /// [`Renderer::render_frame`], also returning each pixel's first hit, from the ray its
     /// colour came from (what the denoiser's guide is made of, at no extra ray).
     pub fn render_frame_guided(&self, frame: u32) -> (Vec<Vec3>, Vec<FirstHit>, FrameStats) {
-        let (pixels, stats) = match self.tracing {
-            Tracing::Wavefront => self
-                .render_tiles(|x0, y0| self.wavefront_tile::<true, _>(frame, x0, y0, |colour, first| (colour, first))),
-            Tracing::Single => self.render_frame_with(frame, |ray, rng| {
-                let (sample, first) = self.tracer.trace_guided(ray, rng);
-                ((sample.radiance, first), sample.rays)
+        match self.tracing {
+            Tracing::Wavefront => self.render_tiles_split(|x0, y0| {
+                self.wavefront_tile::<true, _>(frame, x0, y0, |colour, first| (colour, first))
             }),
-        };
-        let (mut colours, mut hits) = (Vec::new(), Vec::new());
-        pixels.into_par_iter().unzip_into_vecs(&mut colours, &mut hits);
-        (colours, hits, stats)
+            Tracing::Single => self.render_tiles_split(|x0, y0| {
+                self.single_tile(frame, x0, y0, &|ray, rng| {
+                    let (sample, first) = self.tracer.trace_guided(ray, rng);
+                    ((sample.radiance, first), sample.rays)
+                })
+            }),
+        }
     }
 
     /// The first hits [`Renderer::render_frame_guided`] gives frame `frame`, from the same
@@ -285,18 +285,28 @@ impl Renderer<'_> {
         frame: u32,
         shade: impl Fn(phr_bvh::Ray, &mut Pcg32) -> (T, u32) + Sync,
     ) -> (Vec<T>, FrameStats) {
-        self.render_tiles(|x0, y0| {
-            let mut out = Vec::with_capacity((TILE * TILE) as usize);
-            let mut rays = 0u64;
-            for y in y0..(y0 + TILE).min(self.height) {
-                for x in x0..(x0 + TILE).min(self.width) {
-                    let (colour, traced) = self.pixel_sample(frame, y * self.width + x, &shade);
-                    out.push(colour);
-                    rays += traced as u64;
-                }
+        self.render_tiles(|x0, y0| self.single_tile(frame, x0, y0, &shade))
+    }
+
+    /// One tile (corner `x0, y0`) of [`Renderer::render_frame_with`]: its pixels in its
+    /// row-major order, and the rays traced.
+    fn single_tile<T>(
+        &self,
+        frame: u32,
+        x0: u32,
+        y0: u32,
+        shade: &impl Fn(phr_bvh::Ray, &mut Pcg32) -> (T, u32),
+    ) -> (Vec<T>, u64) {
+        let mut out = Vec::with_capacity((TILE * TILE) as usize);
+        let mut rays = 0u64;
+        for y in y0..(y0 + TILE).min(self.height) {
+            for x in x0..(x0 + TILE).min(self.width) {
+                let (colour, traced) = self.pixel_sample(frame, y * self.width + x, shade);
+                out.push(colour);
+                rays += traced as u64;
             }
-            (out, rays)
-        })
+        }
+        (out, rays)
     }
 
     /// Renders the tiles as rayon tasks: `tile(x0, y0)` gives a tile's pixels in its
@@ -305,28 +315,69 @@ impl Renderer<'_> {
         &self,
         tile: impl Fn(u32, u32) -> (Vec<T>, u64) + Sync,
     ) -> (Vec<T>, FrameStats) {
+        let mut image = self.blank_image();
+        let stride = self.width as usize * TILE as usize;
+        let stats = self.lay_tiles(tile, image.par_chunks_mut(stride.max(1)), |rows, at, pixels| {
+            rows[at..at + pixels.len()].copy_from_slice(pixels);
+        });
+        (image, stats)
+    }
+
+    /// [`Renderer::render_tiles`] of pixels in two parts, laid into two images (the
+    /// colours and the first hits of a guided frame: one copy, not a second pass to split
+    /// them, which took 0.46 ms of a 256² frame).
+    fn render_tiles_split<A, B>(
+        &self,
+        tile: impl Fn(u32, u32) -> (Vec<(A, B)>, u64) + Sync,
+    ) -> (Vec<A>, Vec<B>, FrameStats)
+    where
+        A: Copy + Default + Send + Sync,
+        B: Copy + Default + Send + Sync,
+    {
+        let (mut first, mut second) = (self.blank_image(), self.blank_image());
+        let stride = (self.width as usize * TILE as usize).max(1);
+        let rows = first.par_chunks_mut(stride).zip(second.par_chunks_mut(stride));
+        let stats = self.lay_tiles(tile, rows, |(a, b), at, pixels| {
+            for ((a, b), &(x, y)) in a[at..at + pixels.len()].iter_mut().zip(&mut b[at..at + pixels.len()]).zip(pixels)
+            {
+                (*a, *b) = (x, y);
+            }
+        });
+        (first, second, stats)
+    }
+
+    /// An image of default pixels (or none, for an empty image), made in parallel.
+    fn blank_image<T: Default + Send>(&self) -> Vec<T> {
+        (0..self.width as usize * self.height as usize).into_par_iter().map(|_| T::default()).collect()
+    }
+
+    /// Traces the tiles (`tile(x0, y0)`: a tile's pixels in its row-major order and its
+    /// rays) as rayon tasks and lays each into `rows`, the image's rows of tiles (`TILE`
+    /// rows of pixels each): `put(rows, at, pixels)` writes a run of a tile's pixels at
+    /// index `at` of its row of tiles. A row of tiles per task: copied on one thread, the
+    /// guided frame's 52-byte pixels took a tenth of the carousel's render.
+    fn lay_tiles<T: Send + Sync, R: Send>(
+        &self,
+        tile: impl Fn(u32, u32) -> (Vec<T>, u64) + Sync,
+        rows: impl IndexedParallelIterator<Item = R>,
+        put: impl Fn(&mut R, usize, &[T]) + Sync,
+    ) -> FrameStats {
         if self.width == 0 || self.height == 0 {
-            return (Vec::new(), FrameStats::default());
+            return FrameStats::default();
         }
         let tiles: Vec<(Vec<T>, u64)> = self.tiles().into_par_iter().map(|(x0, y0)| tile(x0, y0)).collect();
-        // Laid into the image a row of tiles per task: copied on one thread, the guided
-        // frame's 52-byte pixels took a tenth of the carousel's render.
         let width = self.width as usize;
-        let mut image: Vec<T> = (0..width * self.height as usize).into_par_iter().map(|_| T::default()).collect();
         let tiles_per_row = self.width.div_ceil(TILE) as usize;
-        image.par_chunks_mut(width * TILE as usize).zip(tiles.par_chunks(tiles_per_row)).for_each(
-            |(rows, row_tiles)| {
-                for (k, (pixels, _)) in row_tiles.iter().enumerate() {
-                    let x0 = k * TILE as usize;
-                    let tile_w = (x0 + TILE as usize).min(width) - x0;
-                    for (r, tile_row) in pixels.chunks(tile_w).enumerate() {
-                        rows[r * width + x0..r * width + x0 + tile_w].copy_from_slice(tile_row);
-                    }
+        rows.zip(tiles.par_chunks(tiles_per_row)).for_each(|(mut rows, row_tiles)| {
+            for (k, (pixels, _)) in row_tiles.iter().enumerate() {
+                let x0 = k * TILE as usize;
+                let tile_w = (x0 + TILE as usize).min(width) - x0;
+                for (r, tile_row) in pixels.chunks(tile_w).enumerate() {
+                    put(&mut rows, r * width + x0, tile_row);
                 }
-            },
-        );
-        let stats = FrameStats { rays: tiles.iter().map(|(_, rays)| rays).sum() };
-        (image, stats)
+            }
+        });
+        FrameStats { rays: tiles.iter().map(|(_, rays)| rays).sum() }
     }
 
     /// Sample `frame` of `pixel` (row-major index) through `shade`: its random numbers and
