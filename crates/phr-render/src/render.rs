@@ -288,8 +288,9 @@ impl Renderer<'_> {
         self.render_tiles(|x0, y0| self.single_tile(frame, x0, y0, &shade))
     }
 
-    /// One tile (corner `x0, y0`) of [`Renderer::render_frame_with`]: its pixels in its
-    /// row-major order, and the rays traced.
+    /// One tile (corner `x0, y0`) of the one-path-at-a-time loop
+    /// ([`Renderer::render_frame_with`], and [`Renderer::render_frame_guided`] with
+    /// [`Tracing::Single`]): its pixels in its row-major order, and the rays traced.
     fn single_tile<T>(
         &self,
         frame: u32,
@@ -352,14 +353,14 @@ impl Renderer<'_> {
     }
 
     /// Traces the tiles (`tile(x0, y0)`: a tile's pixels in its row-major order and its
-    /// rays) as rayon tasks and lays each into `rows`, the image's rows of tiles (`TILE`
-    /// rows of pixels each): `put(rows, at, pixels)` writes a run of a tile's pixels at
+    /// rays) as rayon tasks and lays each into `tile_rows`, the image's rows of tiles
+    /// (`TILE` rows of pixels each): `put(rows, at, pixels)` writes a run of a tile's pixels at
     /// index `at` of its row of tiles. A row of tiles per task: copied on one thread, the
     /// guided frame's 52-byte pixels took a tenth of the carousel's render.
     fn lay_tiles<T: Send + Sync, R: Send>(
         &self,
         tile: impl Fn(u32, u32) -> (Vec<T>, u64) + Sync,
-        rows: impl IndexedParallelIterator<Item = R>,
+        tile_rows: impl IndexedParallelIterator<Item = R>,
         put: impl Fn(&mut R, usize, &[T]) + Sync,
     ) -> FrameStats {
         if self.width == 0 || self.height == 0 {
@@ -368,7 +369,7 @@ impl Renderer<'_> {
         let tiles: Vec<(Vec<T>, u64)> = self.tiles().into_par_iter().map(|(x0, y0)| tile(x0, y0)).collect();
         let width = self.width as usize;
         let tiles_per_row = self.width.div_ceil(TILE) as usize;
-        rows.zip(tiles.par_chunks(tiles_per_row)).for_each(|(mut rows, row_tiles)| {
+        tile_rows.zip(tiles.par_chunks(tiles_per_row)).for_each(|(mut rows, row_tiles)| {
             for (k, (pixels, _)) in row_tiles.iter().enumerate() {
                 let x0 = k * TILE as usize;
                 let tile_w = (x0 + TILE as usize).min(width) - x0;
@@ -469,6 +470,19 @@ mod tests {
             assert_eq!(stats.rays, u64::from(width * height), "{width} × {height}");
             for (i, &(x, y)) in image.iter().enumerate() {
                 assert_eq!((x, y), (i as u32 % width, i as u32 / width), "{width} × {height}, pixel {i}");
+            }
+            // The same, split: each pixel's coordinates into one image, swapped into the other.
+            let (first, second, stats) = renderer.render_tiles_split(|x0, y0| {
+                let (x1, y1) = ((x0 + TILE).min(width), (y0 + TILE).min(height));
+                let pixels: Vec<((u32, u32), (u32, u32))> =
+                    (y0..y1).flat_map(|y| (x0..x1).map(move |x| ((x, y), (y, x)))).collect();
+                let n = pixels.len() as u64;
+                (pixels, n)
+            });
+            assert_eq!(stats.rays, u64::from(width * height), "{width} × {height}, split");
+            for (i, (&a, &b)) in first.iter().zip(&second).enumerate() {
+                let (x, y) = (i as u32 % width, i as u32 / width);
+                assert_eq!((a, b), ((x, y), (y, x)), "{width} × {height}, split, pixel {i}");
             }
         }
     }

@@ -83,8 +83,9 @@ const OFF_SURFACE: [f32; 5] = [0.0, 0.0, 0.0, 0.0, f32::INFINITY];
 
 /// `K` planes of `width` values a row with `pad` values of `fill` on each side of every row,
 /// pixel `i`'s values from `value(i)`: one pass over the rows, in parallel. `memory`'s
-/// planes are written over if they were made for the same layout and fill (their padding
-/// is then already `fill`: nothing writes there), else new ones are made.
+/// planes are written over if they have the length of this layout, else new ones are made:
+/// the caller promises that planes of that length were made for this layout and `fill` (a
+/// padding keeps its values: a pass writes there only the values it holds).
 fn padded_planes<const K: usize>(
     memory: Option<[Vec<f32>; K]>,
     rows: usize,
@@ -255,12 +256,14 @@ impl Signal {
     }
 }
 
-/// Memory an [`Atrous::filter_in`] keeps for the next: the planes a pass writes into, and
+/// Memory an [`Atrous::filter_reusing`] keeps for the next: the planes a pass writes into, and
 /// the blurred variance's.
 #[derive(Default)]
 pub(crate) struct FilterMemory {
     spare: Option<Signal>,
     blurred: Vec<f32>,
+    /// The width, height and padding `blurred` was made for.
+    blurred_layout: (usize, usize, usize),
 }
 
 /// What [`Atrous::row`] reads: the guide, the pass's signal and blurred variance, the row and
@@ -294,12 +297,12 @@ impl Atrous {
     /// this filter's passes, and `signal` laid out for it (its memory takes a later pass's
     /// output).
     pub(crate) fn filter(&self, guide: &GuidePlanes, signal: Signal, after_first: impl FnMut(&Signal)) -> Signal {
-        self.filter_in(guide, signal, &mut FilterMemory::default(), after_first)
+        self.filter_reusing(guide, signal, &mut FilterMemory::default(), after_first)
     }
 
     /// [`Atrous::filter`], taking the planes its passes write into from `memory` (when they
     /// fit the guide) and leaving them there for the next call.
-    pub(crate) fn filter_in(
+    pub(crate) fn filter_reusing(
         &self,
         guide: &GuidePlanes,
         mut signal: Signal,
@@ -310,8 +313,12 @@ impl Atrous {
         // for the whole filter, not one per pass.
         assert!(signal.fits(guide), "the signal was laid out for another guide");
         let mut spare = memory.spare.take().filter(|s| s.fits(guide));
+        let layout = (guide.width, guide.height, guide.pad);
+        if memory.blurred_layout != layout {
+            // Its padding must be 0 (what `blurred_variance` leaves there).
+            (memory.blurred, memory.blurred_layout) = (vec![0.0; guide.stride * guide.height], layout);
+        }
         let blurred = &mut memory.blurred;
-        blurred.resize(guide.stride * guide.height, 0.0);
         for pass in 0..self.passes {
             // Steps this wide are wider than any image: the passes left would keep only their
             // centre taps.
@@ -529,7 +536,7 @@ unsafe fn luminance_lanes<V: Lanes>(r: V, g: V, b: V) -> V {
 
 /// The variance smoothed by a 3×3 Gaussian over surface pixels, as SVGF does before each pass:
 /// one pixel's variance estimate from few samples is itself noisy. Into `out`, laid out as
-/// the signal's planes (its padding is left as it is: 0).
+/// the signal's planes (its padding is left as it is, 0 in every caller's).
 fn blurred_variance(guide: &GuidePlanes, signal: &Signal, out: &mut [f32]) {
     let surface = &guide.surface_blurred;
     blur_3x3_into(&signal.var, guide.width, guide.height, guide.pad, out, |i, sum| {
@@ -688,9 +695,14 @@ mod tests {
         let mut blurred = vec![0.0; planes.stride * planes.height];
         blurred_variance(&planes, &signal, &mut blurred);
         let atrous = Atrous::default();
-        // The output rows a variant writes, from the values of pixels off surfaces.
+        // The output rows a variant writes: the padding holds the values of pixels off
+        // surfaces (as the planes' padding does), the image a NaN that every pixel must
+        // overwrite.
         let rows = |variant: &dyn Fn(OutRow)| {
             let mut rows = OFF_SURFACE.map(|fill| vec![fill; planes.stride]);
+            for row in &mut rows {
+                row[planes.pad..planes.pad + w as usize].fill(f32::NAN);
+            }
             let [r, g, b, v, l] = &mut rows;
             variant([r, g, b, v, l]);
             rows
@@ -707,6 +719,10 @@ mod tests {
                 for x in on_surface {
                     let c = Vec3::new(plain[0][pad + x], plain[1][pad + x], plain[2][pad + x]);
                     assert_eq!(plain[4][pad + x].to_bits(), luminance(c).to_bits(), "row {y}, step {step}, x {x}");
+                }
+                for x in (0..w as usize).filter(|x| guide.footprint[y * w as usize + x] <= 0.0) {
+                    let values = plain.each_ref().map(|plane| plane[pad + x].to_bits());
+                    assert_eq!(values, OFF_SURFACE.map(f32::to_bits), "row {y}, step {step}, x {x}: off surfaces");
                 }
                 #[cfg(target_arch = "x86_64")]
                 {

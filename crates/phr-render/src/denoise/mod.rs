@@ -162,7 +162,8 @@ impl Guide {
                 let hit = geometry.intersect(ray);
                 hit.map_or(FirstHit::SKY, |hit| tracer.first_hit(&geometry.surface_point(ray, &hit), &hit))
             };
-            let mut centre = first_hit(&camera.ray(x + 0.5, y + 0.5));
+            let centre_ray = camera.ray(x + 0.5, y + 0.5);
+            let mut centre = first_hit(&centre_ray);
             let mut albedo = centre.albedo;
             for _ in 1..samples.max(1) {
                 let first = first_hit(&camera.ray(x + rng.next_f32(), y + rng.next_f32()));
@@ -170,7 +171,7 @@ impl Guide {
                 centre.light |= first.light;
             }
             centre.albedo = albedo / samples.max(1) as f32;
-            guide_pixel(&camera.ray(x + 0.5, y + 0.5), camera.ray(x + 1.5, y + 0.5).dir, &centre)
+            guide_pixel(&centre_ray, camera.ray(x + 1.5, y + 0.5).dir, &centre)
         })
     }
 
