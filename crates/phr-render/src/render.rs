@@ -337,11 +337,11 @@ impl Renderer<'_> {
     {
         let (mut first, mut second) = (self.blank_image(), self.blank_image());
         let stride = (self.width as usize * TILE as usize).max(1);
-        let rows = first.par_chunks_mut(stride).zip(second.par_chunks_mut(stride));
-        let stats = self.lay_tiles(tile, rows, |(a, b), at, pixels| {
-            for ((a, b), &(x, y)) in a[at..at + pixels.len()].iter_mut().zip(&mut b[at..at + pixels.len()]).zip(pixels)
-            {
-                (*a, *b) = (x, y);
+        let tile_rows = first.par_chunks_mut(stride).zip(second.par_chunks_mut(stride));
+        let stats = self.lay_tiles(tile, tile_rows, |(firsts, seconds), at, pixels| {
+            let run = at..at + pixels.len();
+            for ((a, b), &(left, right)) in firsts[run.clone()].iter_mut().zip(&mut seconds[run]).zip(pixels) {
+                (*a, *b) = (left, right);
             }
         });
         (first, second, stats)
