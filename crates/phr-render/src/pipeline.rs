@@ -473,7 +473,18 @@ impl FramePipeline {
     /// Renders one frame: advances the animation by `dt` seconds (times the speed) if it is
     /// playing, rebuilds the tree if anything moved or the builder changed, traces one sample
     /// per pixel and adds it to the film.
+    ///
+    /// The frame runs on one of rayon's worker threads, serial parts included, so that a
+    /// frame keeps as many threads busy as the pool has. Run from the caller's thread, its
+    /// serial parts (posing, placing, the filter's set-up) made one thread more than cores
+    /// between the parallel loops, and the scheduler at times left both workers of a
+    /// 2-core pool on one core for the next loop: on the carousel, one moving frame in four
+    /// to seven rendered in 19 ms instead of 12.
     pub fn step(&mut self, dt: f32) -> FrameReport {
+        rayon::scope(|_| self.frame(dt))
+    }
+
+    fn frame(&mut self, dt: f32) -> FrameReport {
         let start = Instant::now();
         let mut report = FrameReport { frame: self.frame, ..FrameReport::default() };
         let moved = self.playing && self.speed != 0.0 && self.animator.is_animated();

@@ -14,7 +14,6 @@ use phr_bvh::phr::PhrOptions;
 use phr_bvh::{Aabb, WideBvh};
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::Mutex;
-use std::thread::JoinHandle;
 
 /// A tree the worker built.
 pub struct Rebuilt {
@@ -32,11 +31,15 @@ struct Request {
 }
 
 /// The worker thread and what is under way on it.
+///
+/// The worker is not joined: dropping the rebuilder closes its channel, which ends the
+/// worker's loop after the build under way. Waiting for that build could deadlock, as the
+/// pipeline drops the rebuilder inside a frame, which runs on one of rayon's workers, and
+/// the build needs the pool (with one thread, that very worker).
 pub struct AsyncRebuilder {
-    requests: Option<Sender<Request>>,
+    requests: Sender<Request>,
     /// (In a mutex only so that the pipeline, which renders from several threads, is `Sync`.)
     results: Mutex<Receiver<(Rebuilt, Vec<Aabb>)>>,
-    worker: Option<JoinHandle<()>>,
     busy: bool,
     /// Memory for the next request: the boxes the last one copied, the tree a landed one
     /// replaced.
@@ -54,7 +57,7 @@ impl AsyncRebuilder {
         let first = Rebuilt { wide, frame, timings };
         let (requests, incoming) = channel::<Request>();
         let (outgoing, results) = channel();
-        let worker = std::thread::Builder::new()
+        std::thread::Builder::new()
             .name("phr-rebuild".into())
             .spawn(move || {
                 for mut r in incoming {
@@ -66,9 +69,8 @@ impl AsyncRebuilder {
             })
             .expect("start the rebuild worker thread");
         let rebuilder = Self {
-            requests: Some(requests),
+            requests,
             results: Mutex::new(results),
-            worker: Some(worker),
             busy: false,
             spare_boxes: Vec::new(),
             spare_tree: WideBvh::default(),
@@ -85,9 +87,7 @@ impl AsyncRebuilder {
         copy.clear();
         copy.extend_from_slice(boxes);
         let into = std::mem::take(&mut self.spare_tree);
-        if let Some(requests) = &self.requests {
-            self.busy = requests.send(Request { boxes: copy, into, frame }).is_ok();
-        }
+        self.busy = self.requests.send(Request { boxes: copy, into, frame }).is_ok();
     }
 
     /// Whether a rebuild is under way ([`AsyncRebuilder::start`] would do nothing).
@@ -109,15 +109,5 @@ impl AsyncRebuilder {
     /// Takes back the tree a landed one replaced, as memory for the next build.
     pub fn recycle(&mut self, tree: WideBvh<WIDTH>) {
         self.spare_tree = tree;
-    }
-}
-
-impl Drop for AsyncRebuilder {
-    fn drop(&mut self) {
-        // Closing the channel ends the worker's loop after the build under way.
-        self.requests = None;
-        if let Some(worker) = self.worker.take() {
-            let _ = worker.join();
-        }
     }
 }
