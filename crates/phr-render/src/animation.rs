@@ -24,6 +24,8 @@ struct PosedMesh {
     indices: Vec<[u32; 3]>,
     rest: Vec<Vec3>,
     posed: Vec<Vec3>,
+    /// When the first procedural motion is a wave: its [`Motion::rest_phases`] of `rest`.
+    wave_phases: Option<Vec<[f32; 2]>>,
     animation: Animation,
 }
 
@@ -112,6 +114,10 @@ impl Animator {
                         // Node animations pose vertices by their number in the mesh.
                         Animation::Nodes(_) => (mesh.triangles.clone(), mesh.positions.clone()),
                     };
+                    let wave_phases = match &a.animation {
+                        Animation::Procedural(motions) => motions.first().and_then(|m| m.rest_phases(&rest)),
+                        Animation::Nodes(_) => None,
+                    };
                     meshes.push(PosedMesh {
                         rigid,
                         node_parts,
@@ -119,6 +125,7 @@ impl Animator {
                         indices,
                         posed: rest.clone(),
                         rest,
+                        wave_phases,
                         animation: a.animation.clone(),
                     });
                 }
@@ -268,9 +275,19 @@ impl PosedMesh {
     /// Moves its triangles in `geometry` to time `t`.
     fn pose(&mut self, geometry: &mut Geometry, t: f32) {
         match &self.animation {
-            Animation::Procedural(motions) => {
-                self.posed.par_iter_mut().zip(&self.rest).for_each(|(p, &r)| *p = Motion::apply_all(motions, r, t));
-            }
+            Animation::Procedural(motions) => match (&self.wave_phases, motions.first().and_then(|m| m.wave_at(t))) {
+                (Some(phases), Some(wave)) => {
+                    let others = &motions[1..];
+                    self.posed
+                        .par_iter_mut()
+                        .zip(&self.rest)
+                        .zip(phases)
+                        .for_each(|((p, &r), &phase)| *p = Motion::apply_all(others, wave.apply(r, phase), t));
+                }
+                _ => {
+                    self.posed.par_iter_mut().zip(&self.rest).for_each(|(p, &r)| *p = Motion::apply_all(motions, r, t))
+                }
+            },
             Animation::Nodes(nodes) => nodes.pose(&mut self.posed, t),
         }
         let posed = &self.posed;

@@ -42,6 +42,33 @@ impl Motion {
         motions.iter().fold(p, |p, m| m.apply(p, t))
     }
 
+    /// For a wave, the sine and cosine of each point's spatial phase `2π p·direction /
+    /// wavelength`, which do not change with time: [`WaveAt::apply`] then poses a point with
+    /// two multiplications instead of a sine (the 871k-triangle dragon's 437k vertices took
+    /// 3 ms a frame of sines on 2 threads). `None` for the other motions.
+    pub fn rest_phases(&self, points: &[Vec3]) -> Option<Vec<[f32; 2]>> {
+        use std::f32::consts::TAU;
+        let Motion::Wave { wavelength, direction, .. } = *self else { return None };
+        Some(
+            points
+                .par_iter()
+                .map(|p| {
+                    let (sin, cos) = (TAU * p.dot(direction) / wavelength).sin_cos();
+                    [sin, cos]
+                })
+                .collect(),
+        )
+    }
+
+    /// A wave at time `t`, to apply to points whose [`Motion::rest_phases`] are known; `None`
+    /// for the other motions.
+    pub fn wave_at(&self, t: f32) -> Option<WaveAt> {
+        use std::f32::consts::TAU;
+        let Motion::Wave { amplitude, period, displacement, .. } = *self else { return None };
+        let (sin, cos) = (TAU * t / period).sin_cos();
+        Some(WaveAt { offset: displacement * amplitude, sin, cos })
+    }
+
     /// The motion at time `t` as one affine map of space, if it is one (rotations and
     /// oscillations are; a wave deforms).
     pub fn affine(&self, t: f32) -> Option<Affine3A> {
@@ -76,6 +103,25 @@ impl Motion {
                 other => other.clone(),
             })
             .collect()
+    }
+}
+
+/// A travelling wave at one time ([`Motion::wave_at`]): the sine of a point's phase
+/// `a − b` (`a` its spatial phase, `b = 2π t / period`) is `sin a cos b − cos a sin b`.
+#[derive(Clone, Copy, Debug)]
+pub struct WaveAt {
+    /// `amplitude · displacement`.
+    offset: Vec3,
+    /// Of `b`.
+    sin: f32,
+    cos: f32,
+}
+
+impl WaveAt {
+    /// [`Motion::apply`] of the wave to `p`, whose spatial phase's sine and cosine are `phase`.
+    #[inline]
+    pub fn apply(&self, p: Vec3, [sin_a, cos_a]: [f32; 2]) -> Vec3 {
+        p + self.offset * (sin_a * self.cos - cos_a * self.sin)
     }
 }
 
@@ -335,6 +381,29 @@ mod tests {
         let wave =
             Motion::Wave { amplitude: 0.5, wavelength: 2.0, period: 1.0, direction: Vec3::X, displacement: Vec3::Y };
         assert!(Motion::affine_all(&[motions[1].clone(), wave], 1.0).is_none());
+    }
+
+    #[test]
+    fn a_wave_from_rest_phases_moves_points_as_applied() {
+        let wave = Motion::Wave {
+            amplitude: 0.3,
+            wavelength: 0.7,
+            period: 1.3,
+            direction: Vec3::new(0.8, 0.1, -0.6).normalize(),
+            displacement: Vec3::new(0.0, 1.0, 0.2).normalize(),
+        };
+        let points: Vec<Vec3> =
+            (0..200).map(|k| Vec3::new(k as f32 * 0.037 - 3.0, (k % 7) as f32 * 0.4, (k % 13) as f32 * -0.3)).collect();
+        let phases = wave.rest_phases(&points).expect("a wave");
+        for t in [0.0, 0.21, 1.0, 7.9] {
+            let at = wave.wave_at(t).expect("a wave");
+            for (&p, &phase) in points.iter().zip(&phases) {
+                let (got, want) = (at.apply(p, phase), wave.apply(p, t));
+                assert!((got - want).length() < 1e-5, "t = {t}, p = {p}: {got} vs {want}");
+            }
+        }
+        let bob = Motion::Oscillate { amplitude: Vec3::Y, period: 4.0 };
+        assert!(bob.rest_phases(&points).is_none() && bob.wave_at(1.0).is_none());
     }
 
     #[test]
