@@ -163,3 +163,41 @@ fn trees_refitted_from_packed_triangles_hold_exactly_their_leaves() {
         }
     }
 }
+
+/// [`phr_bvh::WideBvh::refit_repacking`], the one pass a deforming mesh's frames run while
+/// its tree stays, gives the tree and the packed triangles of a repack followed by
+/// [`phr_bvh::WideBvh::refit_packed`], to the bit: with small leaves sharing blocks, padding
+/// between leaves, entries that are not triangles, and a `packed` of another size.
+#[test]
+fn refitting_while_repacking_equals_repacking_then_refitting() {
+    use phr_bvh::{PackedTriangles, WideBvh};
+    let mut rng = Rng::new(12);
+    let rest = random_soup(6000, 1.0, &mut rng);
+    let others = 90;
+    let n_tris = rest.len() - others;
+    let mut tree = WideBvh::<8>::default();
+    let boxes = triangle_boxes(&rest);
+    DynamicBvh::new(&boxes, PhrOptions::FAST).update_wide(&boxes, &mut tree);
+    let leaf_starts: Vec<usize> =
+        tree.nodes.iter().flat_map(|n| (0..8).filter(|&s| n.count[s] > 0).map(|s| n.child[s] as usize)).collect();
+    assert!(leaf_starts.iter().any(|&f| f % 4 != 0), "no two leaves share a block");
+    assert!(tree.prim_indices.len() > rest.len(), "no padding");
+    let mut packed = PackedTriangles::new(&tree.prim_indices, &rest[..n_tris]);
+    for frame in 1..5 {
+        let f = frame as f32;
+        // Every coordinate moves, and edges change: each of the nine rows of an entry.
+        let shift = |v: Vec3| v + Vec3::new(0.2 * (3.0 * v.z + f).sin(), 0.05 * f * v.x, 0.1 * (2.0 * v.y - f).sin());
+        let tris: Vec<[Vec3; 3]> = rest.iter().map(|t| t.map(shift)).collect();
+        let other = |p: u32| triangle_boxes(&tris[p as usize..p as usize + 1])[0];
+        let mut want = tree.clone();
+        let want_packed = PackedTriangles::new(&want.prim_indices, &tris[..n_tris]);
+        want.refit_packed(&want_packed, n_tris, other);
+        let mut fresh = (tree.clone(), PackedTriangles::default());
+        tree.refit_repacking(&mut packed, &tris[..n_tris], other);
+        fresh.0.refit_repacking(&mut fresh.1, &tris[..n_tris], other);
+        for (got, got_packed) in [(&tree, &packed), (&fresh.0, &fresh.1)] {
+            assert_eq!(got.nodes, want.nodes, "frame {frame}");
+            assert_eq!(got_packed.blocks, want_packed.blocks, "frame {frame}");
+        }
+    }
+}

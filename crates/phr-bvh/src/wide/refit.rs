@@ -10,11 +10,16 @@
 //! deforming mesh, the triangles just packed in leaf order ([`WideBvh::refit_packed`], with
 //! [`PackedTriangles::bounds`]). The second needs no boxes at all: on the 871k-triangle
 //! dragon, computing them, storing them in scene order and gathering them back by primitive
-//! index took 7 ms of a frame on 2 threads (`docs/dynamic/history.md`).
+//! index took 7 ms of a frame on 2 threads (`docs/dynamic/history.md`). While the tree stays,
+//! [`WideBvh::refit_repacking`] packs each leaf's triangles as it boxes them, so the packed
+//! triangles are not read back: on the dragon, 11.8 ms of packing and refitting became 10.4
+//! (the triangles are read in the nodes' order, more scattered than packing's; the pass
+//! waits on memory either way).
 
-use super::triangles::{PackedTriangles, LANES};
+use super::triangles::{prefetch_read, widened, PackedTriangles, SharedEntries, LANES};
 use super::WideBvh;
 use crate::aabb::Aabb;
+use glam::Vec3;
 use std::ops::Range;
 
 impl<const N: usize> WideBvh<N> {
@@ -43,7 +48,7 @@ impl<const N: usize> WideBvh<N> {
                     b.union(if is_triangle(p) { packed.bounds(i..i + 1) } else { other(p) })
                 }),
             },
-            |entries| {
+            |entries, _| {
                 packed.prefetch(entries.start as u32);
                 if entries.end - entries.start > LANES {
                     packed.prefetch((entries.end - 1) as u32);
@@ -57,33 +62,81 @@ impl<const N: usize> WideBvh<N> {
     /// leaf slots, which read the primitives and are most of the work, are refitted in
     /// parallel; then the interior slots, bottom up.
     pub fn refit_with(&mut self, leaf_bounds: impl Fn(Range<usize>, &[u32]) -> Aabb + Sync) {
-        self.refit_prefetched(leaf_bounds, |_| {});
+        self.refit_prefetched(leaf_bounds, |_, _| {});
+    }
+
+    /// [`PackedTriangles::repack`] and then [`WideBvh::refit_packed`] in one pass, for the
+    /// frames of a deforming mesh whose tree stays: each leaf's triangles are packed and
+    /// boxed in the same visit, so the packed triangles are not read back. The leaves' and
+    /// the packed entries' values are those of the two passes, to the bit.
+    ///
+    /// `packed` must hold this tree's entries from an earlier [`PackedTriangles::repack`]:
+    /// only the leaves' entries are written, not the padding between them (zero, as packed
+    /// before). Entries `p >= triangles.len()` are not triangles and get `other(p)` (and stay
+    /// zero in `packed`). A `packed` of another size is packed in full first.
+    pub fn refit_repacking(
+        &mut self,
+        packed: &mut PackedTriangles,
+        triangles: &[[Vec3; 3]],
+        other: impl Fn(u32) -> Aabb + Sync,
+    ) {
+        if packed.blocks.len() != self.prim_indices.len().div_ceil(LANES) {
+            packed.repack(&self.prim_indices, triangles);
+            return self.refit_packed(packed, triangles.len(), other);
+        }
+        let entries_out = SharedEntries::new(packed);
+        self.refit_prefetched(
+            |entries, prims| {
+                let (mut min, mut max) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+                let mut others = Aabb::EMPTY;
+                for (i, &p) in entries.zip(prims) {
+                    match triangles.get(p as usize) {
+                        Some(&triangle) => {
+                            let [a, b, c] = entries_out.store(i, triangle);
+                            (min, max) = (min.min(a.min(b).min(c)), max.max(a.max(b).max(c)));
+                        }
+                        None => others = others.union(other(p)),
+                    }
+                }
+                match min.x <= max.x {
+                    true => widened(min, max).union(others),
+                    false => others,
+                }
+            },
+            |entries, prims| {
+                entries_out.prefetch(entries.start);
+                for &p in prims {
+                    prefetch_read(triangles.as_ptr().wrapping_add(p as usize));
+                }
+            },
+        );
     }
 
     /// [`WideBvh::refit_with`], asking for the data of the leaves a few nodes ahead with
-    /// `prefetch(entries)`. A node's leaves are not next to its neighbours' in the leaf
+    /// `prefetch(entries, prims)`. A node's leaves are not next to its neighbours' in the leaf
     /// order (a node's children are stored together, their leaves where each subtree was
     /// built), so without the hint every leaf's first load waits for memory.
     pub fn refit_prefetched(
         &mut self,
         leaf_bounds: impl Fn(Range<usize>, &[u32]) -> Aabb + Sync,
-        prefetch: impl Fn(Range<usize>) + Sync,
+        prefetch: impl Fn(Range<usize>, &[u32]) + Sync,
     ) {
         use rayon::prelude::*;
         const GRAIN: usize = 256;
         const AHEAD: usize = 8;
+        let prims = &self.prim_indices;
         let prefetch_leaves = |node: &super::WideNode<N>| {
             for s in 0..N {
                 if node.count[s] > 0 {
                     let first = node.child[s] as usize;
-                    prefetch(first..first + node.count[s] as usize);
+                    let entries = first..first + node.count[s] as usize;
+                    prefetch(entries.clone(), &prims[entries]);
                 }
             }
         };
         // Each node's box (the union of its slots), complete after the leaf pass for the
         // nodes with leaves only, which are most of them; the others are listed by chunk.
         let mut own = vec![Aabb::EMPTY; self.nodes.len()];
-        let prims = &self.prim_indices;
         let with_interior: Vec<Vec<u32>> = self
             .nodes
             .par_chunks_mut(GRAIN)

@@ -7,6 +7,7 @@ use crate::ray::Ray;
 use crate::triangle::{intersect_triangle_edges, TriangleHit, EDGE_TOLERANCE, MAX_EDGE_SLACK};
 use glam::Vec3;
 use std::ops::Range;
+use std::sync::atomic::{AtomicU32, Ordering};
 
 /// Triangles per block (one SSE register per coordinate).
 pub const LANES: usize = 4;
@@ -112,19 +113,7 @@ impl PackedTriangles {
     /// Asks for the block holding entry `i` to be loaded into the cache (a hint).
     #[inline(always)]
     pub fn prefetch(&self, i: u32) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let p = self.blocks.as_ptr().wrapping_add(i as usize / LANES).cast::<i8>();
-            // SAFETY: prefetching is a hint and never faults, whatever the address.
-            unsafe {
-                _mm_prefetch::<_MM_HINT_T0>(p);
-                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
-                _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(143));
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = i;
+        prefetch_block(self.blocks.as_ptr().wrapping_add(i as usize / LANES));
     }
 
     /// Möller–Trumbore on entry `i`, scalar.
@@ -184,7 +173,7 @@ impl PackedTriangles {
 
 /// Asks for the cache lines of the 36-byte triangle at `p` (a hint; never faults).
 #[inline(always)]
-fn prefetch_read(p: *const [Vec3; 3]) {
+pub(crate) fn prefetch_read(p: *const [Vec3; 3]) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
@@ -485,7 +474,74 @@ impl PackedTriangles {
         }
         let min = glam::Vec3::new(lo[0].min_element(), lo[1].min_element(), lo[2].min_element());
         let max = glam::Vec3::new(hi[0].max_element(), hi[1].max_element(), hi[2].max_element());
-        const ULP: f32 = f32::EPSILON;
-        Aabb::new(min - min.abs() * ULP, max + max.abs() * ULP)
+        widened(min, max)
     }
+}
+
+/// The box `min..max` of packed entries' corners, widened by a relative 2⁻²³ per side: the
+/// packed test's `v0 + e1` and `v0 + e2` may round past the corners the box was taken from.
+#[inline(always)]
+pub(crate) fn widened(min: Vec3, max: Vec3) -> Aabb {
+    const ULP: f32 = f32::EPSILON;
+    Aabb::new(min - min.abs() * ULP, max + max.abs() * ULP)
+}
+
+/// Entries of a [`PackedTriangles`] written from several threads at once
+/// ([`WideBvh::refit_repacking`] packs leaf by leaf, and small leaves share blocks). Each
+/// float is stored as a relaxed atomic, a plain store on x86, so two threads writing lanes
+/// of one block never race.
+pub(crate) struct SharedEntries<'a> {
+    floats: &'a [AtomicU32],
+}
+
+/// Floats per block.
+const BLOCK_FLOATS: usize = 9 * LANES;
+
+impl<'a> SharedEntries<'a> {
+    pub(crate) fn new(packed: &'a mut PackedTriangles) -> Self {
+        let blocks = packed.blocks.as_mut_slice();
+        // SAFETY: a block is 36 f32 with no padding, an `AtomicU32` has the size and bit
+        // validity of a `u32` and an alignment (4) the blocks' (16) satisfies, and the
+        // exclusive borrow of the blocks lasts as long as the view.
+        let floats =
+            unsafe { std::slice::from_raw_parts(blocks.as_mut_ptr().cast::<AtomicU32>(), blocks.len() * BLOCK_FLOATS) };
+        Self { floats }
+    }
+
+    /// Stores triangle `[v0, v1, v2]` as entry `i` (as [`PackedTriangles::repack`] does) and
+    /// returns its corners as the packed test sees them: `v0`, `v0 + e1`, `v0 + e2`.
+    #[inline(always)]
+    pub(crate) fn store(&self, i: usize, [v0, v1, v2]: [Vec3; 3]) -> [Vec3; 3] {
+        let (e1, e2) = (v1 - v0, v2 - v0);
+        let values = [v0.x, v0.y, v0.z, e1.x, e1.y, e1.z, e2.x, e2.y, e2.z];
+        let first = i / LANES * BLOCK_FLOATS + i % LANES;
+        for (row, value) in values.into_iter().enumerate() {
+            self.floats[first + row * LANES].store(value.to_bits(), Ordering::Relaxed);
+        }
+        [v0, v0 + e1, v0 + e2]
+    }
+
+    /// Asks for the block of entry `i` to be brought into the cache (a hint).
+    #[inline(always)]
+    pub(crate) fn prefetch(&self, i: usize) {
+        prefetch_block(self.floats.as_ptr().wrapping_add(i / LANES * BLOCK_FLOATS).cast());
+    }
+}
+
+/// Asks for the three cache lines of the 144-byte block at `p` (a hint; never faults).
+#[inline(always)]
+fn prefetch_block(p: *const TriangleBlock) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = p.cast::<i8>();
+        // SAFETY: prefetching is a hint and never faults, whatever the address.
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p);
+            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
+            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(143));
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
 }

@@ -131,6 +131,11 @@ pub struct Geometry {
 /// layout makes, never repeats a number a device has seen).
 static PACKINGS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
+/// A [`Part::generation`] no part has had.
+fn next_generation() -> u64 {
+    PACKINGS.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1
+}
+
 /// What replaces the scene-order triangles once they are released: their number, and for
 /// each one the entry of its part's packed triangles that holds it.
 struct Released {
@@ -557,18 +562,26 @@ impl Geometry {
     /// replaced tree is left in `landed`.
     pub fn refit_part(&mut self, k: usize, landed: Option<&mut WideBvh<WIDTH>>) -> std::time::Duration {
         let start = std::time::Instant::now();
+        let n_tris = self.triangle_count();
+        let sphere_bounds = |spheres: &[SphereObject], p: u32| spheres[p as usize - n_tris].sphere.bounds();
         if let Some(tree) = landed {
             let part = &mut self.parts[k];
             std::mem::swap(&mut part.wide, tree);
             if let Some(prims) = &part.prims {
                 to_scene_order(&mut part.wide.prim_indices, prims);
             }
+            self.parts[k].bvh = Bvh::default();
+            self.pack_part(k);
+            let Part { wide, packed, .. } = &mut self.parts[k];
+            wide.refit_packed(packed, n_tris, |p| sphere_bounds(&self.spheres, p));
+        } else {
+            // The same tree: packed again as it is refitted, in one pass.
+            let part = &mut self.parts[k];
+            let (mut wide, mut packed) = (std::mem::take(&mut part.wide), std::mem::take(&mut part.packed));
+            wide.refit_repacking(&mut packed, self.scene_triangles(), |p| sphere_bounds(&self.spheres, p));
+            let part = &mut self.parts[k];
+            (part.wide, part.packed, part.generation) = (wide, packed, next_generation());
         }
-        self.parts[k].bvh = Bvh::default();
-        self.pack_part(k);
-        let (n_tris, spheres) = (self.triangle_count(), &self.spheres);
-        let Part { wide, packed, .. } = &mut self.parts[k];
-        wide.refit_packed(packed, n_tris, |p| spheres[p as usize - n_tris].sphere.bounds());
         self.update_part_bounds(k);
         start.elapsed()
     }
@@ -580,7 +593,7 @@ impl Geometry {
         packed.repack(&self.parts[k].wide.prim_indices, self.scene_triangles());
         self.parts[k].packed = packed;
         self.parts[k].entry_tests = self.needs_entry_tests(k);
-        self.parts[k].generation = PACKINGS.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        self.parts[k].generation = next_generation();
     }
 
     /// Whether part `k` holds spheres or triangles with an alpha mask ([`Part::entry_tests`]).
