@@ -259,6 +259,8 @@ pub struct FramePipeline {
     settings: PipelineSettings,
     camera: CameraDesc,
     film: Film,
+    /// The temporal filter's last guide, whose memory the next frame's reuses.
+    frame_guide: Option<Guide>,
     /// The denoiser's guide for the current view (traced at the first denoising after a
     /// restart) and the last denoised image.
     guide: Option<Guide>,
@@ -325,6 +327,7 @@ impl FramePipeline {
             camera,
             film,
             guide: None,
+            frame_guide: None,
             denoised: None,
             denoise_error: None,
             temporal: Temporal::default(),
@@ -864,8 +867,10 @@ impl FramePipeline {
     /// first hits of the rays they came from.
     fn denoise_frame(&mut self, pixels: &[Vec3], first_hits: &[FirstHit]) {
         let camera = Camera::new(&self.camera, self.settings.width, self.settings.height);
-        let guide = Guide::from_first_hits(&camera, self.settings.width, self.settings.height, first_hits);
+        let (width, height) = (self.settings.width, self.settings.height);
+        let guide = Guide::from_first_hits_reusing(self.frame_guide.take(), &camera, width, height, first_hits);
         self.denoised = Some(self.temporal.denoise(pixels, &guide, &camera));
+        self.frame_guide = Some(guide);
     }
 
     /// Denoises the film as it is now with `filter`, tracing the guide first if the film
