@@ -6,7 +6,7 @@
 //! `c_i = 1`; the issue tables also report `c_t = c_i = 1`.
 
 use crate::node::Bvh;
-use crate::wide::WideBvh;
+use crate::wide::{WideBvh, WideNode, MAX_X, MAX_Y, MAX_Z, MIN_X, MIN_Y, MIN_Z};
 
 /// The constants of the surface area heuristic.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -76,20 +76,37 @@ pub fn wide_sah_cost<const N: usize>(wide: &WideBvh<N>, c: SahConstants) -> f64 
         .nodes
         .par_chunks(1 << 11)
         .map(|chunk| {
-            let slots = chunk.iter().flat_map(|n| (0..N).filter(|&i| n.is_used(i)).map(move |i| (n, i)));
-            slots
-                .map(|(n, i)| {
-                    let a = n.child_bounds(i).surface_area() as f64;
-                    if n.count[i] == 0 {
-                        traversal * a
-                    } else {
-                        intersection * a * n.count[i] as f64
+            let mut sum = 0.0;
+            for n in chunk {
+                for (i, area) in slot_areas(n).into_iter().enumerate() {
+                    match (area.map(f64::from), n.count[i]) {
+                        (None, _) => {}
+                        (Some(a), 0) => sum += traversal * a,
+                        (Some(a), count) => sum += intersection * a * f64::from(count),
                     }
-                })
-                .sum::<f64>()
+                }
+            }
+            sum
         })
         .collect();
     (traversal * root_area + chunk_sums.iter().sum::<f64>()) / root_area
+}
+
+/// The surface areas of a node's slots, `None` for the empty ones: what
+/// [`crate::Aabb::surface_area`] gives each slot's box, lane by lane so that the compiler
+/// can vectorise it (one box at a time, the sum took 1.6 ms of a dragon's frame in the
+/// viewer, which checks the cost of its refitted tree every frame).
+#[inline]
+fn slot_areas<const N: usize>(node: &WideNode<N>) -> [Option<f32>; N] {
+    let b = &node.bounds;
+    let mut areas = [0.0f32; N];
+    let mut empty = [false; N];
+    for i in 0..N {
+        let (ex, ey, ez) = (b[MAX_X][i] - b[MIN_X][i], b[MAX_Y][i] - b[MIN_Y][i], b[MAX_Z][i] - b[MIN_Z][i]);
+        areas[i] = 2.0 * (ex * ey + ey * ez + ez * ex);
+        empty[i] = b[MIN_X][i] > b[MAX_X][i] || b[MIN_Y][i] > b[MAX_Y][i] || b[MIN_Z][i] > b[MAX_Z][i];
+    }
+    std::array::from_fn(|i| (!empty[i]).then_some(areas[i]))
 }
 
 /// Shape statistics of a tree.
