@@ -260,7 +260,7 @@ pub struct FramePipeline {
     camera: CameraDesc,
     film: Film,
     /// The temporal filter's last guide, whose memory the next frame's reuses.
-    frame_guide: Option<Guide>,
+    spare_guide: Option<Guide>,
     /// The denoiser's guide for the current view (traced at the first denoising after a
     /// restart) and the last denoised image.
     guide: Option<Guide>,
@@ -327,7 +327,7 @@ impl FramePipeline {
             camera,
             film,
             guide: None,
-            frame_guide: None,
+            spare_guide: None,
             denoised: None,
             denoise_error: None,
             temporal: Temporal::default(),
@@ -477,17 +477,21 @@ impl FramePipeline {
     /// playing, rebuilds the tree if anything moved or the builder changed, traces one sample
     /// per pixel and adds it to the film.
     ///
-    /// The frame runs on one of rayon's worker threads, serial parts included, so that a
-    /// frame keeps as many threads busy as the pool has. Run from the caller's thread, its
-    /// serial parts (posing, placing, the filter's set-up) made one thread more than cores
-    /// between the parallel loops, and the scheduler at times left both workers of a
+    /// A frame the CPU traces runs on one of rayon's worker threads, serial parts included,
+    /// so that it keeps as many threads busy as the pool has. Run from the caller's thread,
+    /// its serial parts (posing, placing, the filter's set-up) made one thread more than
+    /// cores between the parallel loops, and the scheduler at times left both workers of a
     /// 2-core pool on one core for the next loop: on the carousel, one moving frame in four
-    /// to seven rendered in 19 ms instead of 12.
+    /// to seven rendered in 19 ms instead of 12. A frame another device traces stays on the
+    /// caller's thread, which waits for the device while the workers rebuild.
     pub fn step(&mut self, dt: f32) -> FrameReport {
-        rayon::scope(|_| self.frame(dt))
+        match self.tracer {
+            Some(_) => self.run_frame(dt),
+            None => rayon::scope(|_| self.run_frame(dt)),
+        }
     }
 
-    fn frame(&mut self, dt: f32) -> FrameReport {
+    fn run_frame(&mut self, dt: f32) -> FrameReport {
         let start = Instant::now();
         let mut report = FrameReport { frame: self.frame, ..FrameReport::default() };
         let moved = self.playing && self.speed != 0.0 && self.animator.is_animated();
@@ -868,9 +872,9 @@ impl FramePipeline {
     fn denoise_frame(&mut self, pixels: &[Vec3], first_hits: &[FirstHit]) {
         let camera = Camera::new(&self.camera, self.settings.width, self.settings.height);
         let (width, height) = (self.settings.width, self.settings.height);
-        let guide = Guide::from_first_hits_reusing(self.frame_guide.take(), &camera, width, height, first_hits);
+        let guide = Guide::from_first_hits_reusing(self.spare_guide.take(), &camera, width, height, first_hits);
         self.denoised = Some(self.temporal.denoise(pixels, &guide, &camera));
-        self.frame_guide = Some(guide);
+        self.spare_guide = Some(guide);
     }
 
     /// Denoises the film as it is now with `filter`, tracing the guide first if the film

@@ -14,6 +14,7 @@ use phr_bvh::phr::PhrOptions;
 use phr_bvh::{Aabb, WideBvh};
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::Mutex;
+use std::thread::JoinHandle;
 
 /// A tree the worker built.
 pub struct Rebuilt {
@@ -31,15 +32,11 @@ struct Request {
 }
 
 /// The worker thread and what is under way on it.
-///
-/// The worker is not joined: dropping the rebuilder closes its channel, which ends the
-/// worker's loop after the build under way. Waiting for that build could deadlock, as the
-/// pipeline drops the rebuilder inside a frame, which runs on one of rayon's workers, and
-/// the build needs the pool (with one thread, that very worker).
 pub struct AsyncRebuilder {
-    requests: Sender<Request>,
+    requests: Option<Sender<Request>>,
     /// (In a mutex only so that the pipeline, which renders from several threads, is `Sync`.)
     results: Mutex<Receiver<(Rebuilt, Vec<Aabb>)>>,
+    worker: Option<JoinHandle<()>>,
     busy: bool,
     /// Memory for the next request: the boxes the last one copied, the tree a landed one
     /// replaced.
@@ -57,7 +54,7 @@ impl AsyncRebuilder {
         let first = Rebuilt { wide, frame, timings };
         let (requests, incoming) = channel::<Request>();
         let (outgoing, results) = channel();
-        std::thread::Builder::new()
+        let worker = std::thread::Builder::new()
             .name("phr-rebuild".into())
             .spawn(move || {
                 for mut r in incoming {
@@ -69,8 +66,9 @@ impl AsyncRebuilder {
             })
             .expect("start the rebuild worker thread");
         let rebuilder = Self {
-            requests,
+            requests: Some(requests),
             results: Mutex::new(results),
+            worker: Some(worker),
             busy: false,
             spare_boxes: Vec::new(),
             spare_tree: WideBvh::default(),
@@ -87,7 +85,9 @@ impl AsyncRebuilder {
         copy.clear();
         copy.extend_from_slice(boxes);
         let into = std::mem::take(&mut self.spare_tree);
-        self.busy = self.requests.send(Request { boxes: copy, into, frame }).is_ok();
+        if let Some(requests) = &self.requests {
+            self.busy = requests.send(Request { boxes: copy, into, frame }).is_ok();
+        }
     }
 
     /// Whether a rebuild is under way ([`AsyncRebuilder::start`] would do nothing).
@@ -109,5 +109,25 @@ impl AsyncRebuilder {
     /// Takes back the tree a landed one replaced, as memory for the next build.
     pub fn recycle(&mut self, tree: WideBvh<WIDTH>) {
         self.spare_tree = tree;
+    }
+}
+
+impl Drop for AsyncRebuilder {
+    /// Closes the channel, which ends the worker's loop after the build under way, and waits
+    /// for that build. On one of rayon's workers (a frame drops the rebuilder when the online
+    /// tuner switches builders) the wait runs the pool's pending jobs meanwhile: the build
+    /// needs the pool, and with one thread, that very worker.
+    fn drop(&mut self) {
+        self.requests = None;
+        if let Some(worker) = self.worker.take() {
+            if rayon::current_thread_index().is_some() {
+                while !worker.is_finished() {
+                    if rayon::yield_now() != Some(rayon::Yield::Executed) {
+                        std::thread::yield_now();
+                    }
+                }
+            }
+            let _ = worker.join();
+        }
     }
 }

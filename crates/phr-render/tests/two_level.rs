@@ -284,6 +284,18 @@ fn placed_parts_equal_brute_force() {
     let rebuilt = generations(&g);
     let changed = |a: &[u64], b: &[u64]| (0..a.len()).filter(|&k| a[k] != b[k]).collect::<Vec<_>>();
     assert_eq!(changed(&split, &rebuilt), [2], "a new tree for part 2 alone");
+    // Refitted after its triangles moved, the part keeps no binary tree (the counting
+    // traversal would walk it, boxes and all, instead of the refitted wide tree).
+    for t in &mut g.triangles[9..] {
+        *t = t.map(|v| v + Vec3::new(0.3, -0.2, 0.1));
+    }
+    g.refit_part(2, None);
+    assert!(g.part_bvh(2).nodes.is_empty(), "the refit dropped the binary tree");
+    for ray in rays(500, 12) {
+        let counted = g.intersect_counted(&ray, &mut TraversalStats::default()).map(|h| (h.t, h.prim));
+        assert_eq!(counted, g.intersect(&ray).map(|h| (h.t, h.prim)), "counting traversal, refitted part");
+    }
+    check_placed(&g, n, shift, 4);
     // And again, its wide tree built straight by PHR, without a binary tree: the counting
     // traversal then walks the wide tree.
     for t in &mut g.triangles[9..] {

@@ -84,6 +84,13 @@ impl<const N: usize> WideBvh<N> {
             packed.repack(&self.prim_indices, triangles);
             return self.refit_packed(packed, triangles.len(), other);
         }
+        debug_assert!(
+            self.prim_indices
+                .iter()
+                .enumerate()
+                .all(|(i, &p)| (p as usize) < triangles.len() || packed.get(i as u32) == [Vec3::ZERO; 3]),
+            "`packed` holds a triangle where this tree has padding or a non-triangle: another tree's"
+        );
         let entries_out = SharedEntries::new(packed);
         self.refit_prefetched(
             |entries, prims| {
@@ -105,6 +112,9 @@ impl<const N: usize> WideBvh<N> {
             },
             |entries, prims| {
                 entries_out.prefetch(entries.start);
+                if entries.len() > LANES {
+                    entries_out.prefetch(entries.end - 1);
+                }
                 for &p in prims {
                     prefetch_read(triangles.as_ptr().wrapping_add(p as usize));
                 }

@@ -486,10 +486,10 @@ pub(crate) fn widened(min: Vec3, max: Vec3) -> Aabb {
     Aabb::new(min - min.abs() * ULP, max + max.abs() * ULP)
 }
 
-/// Entries of a [`PackedTriangles`] written from several threads at once
-/// ([`WideBvh::refit_repacking`] packs leaf by leaf, and small leaves share blocks). Each
-/// float is stored as a relaxed atomic, a plain store on x86, so two threads writing lanes
-/// of one block never race.
+/// Entries of a [`PackedTriangles`] written from several threads through a shared
+/// reference ([`WideBvh::refit_repacking`] packs leaf by leaf in parallel, and small leaves
+/// share blocks, so the blocks cannot be split into disjoint `&mut` pieces by leaf). Each
+/// float is a relaxed atomic store, a plain store on x86.
 pub(crate) struct SharedEntries<'a> {
     floats: &'a [AtomicU32],
 }

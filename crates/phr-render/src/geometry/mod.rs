@@ -554,8 +554,10 @@ impl Geometry {
     /// Packs part `k`'s triangles again and refits its wide tree to its primitives where they
     /// are now: the tree keeps its topology and stays valid, though its quality decays with
     /// the motion. The leaves' boxes come from the packed triangles
-    /// ([`WideBvh::refit_packed`]), so [`Geometry::boxes`] is neither read nor updated.
-    /// Returns the time taken.
+    /// ([`WideBvh::refit_packed`]), so [`Geometry::boxes`] is neither read nor updated; when
+    /// the tree stays, the triangles are packed as the leaves are boxed, in one pass
+    /// ([`WideBvh::refit_repacking`], which needs the part's packed triangles to be its tree's,
+    /// as every method here that gives a part a tree packs them). Returns the time taken.
     ///
     /// With `landed`, a tree built meanwhile (over the part's primitives numbered in its
     /// order, as [`Geometry::set_part_wide`] takes it) replaces the part's first, and the
@@ -564,13 +566,14 @@ impl Geometry {
         let start = std::time::Instant::now();
         let n_tris = self.triangle_count();
         let sphere_bounds = |spheres: &[SphereObject], p: u32| spheres[p as usize - n_tris].sphere.bounds();
+        // The binary tree (if the part was built through one) no longer fits the primitives.
+        self.parts[k].bvh = Bvh::default();
         if let Some(tree) = landed {
             let part = &mut self.parts[k];
             std::mem::swap(&mut part.wide, tree);
             if let Some(prims) = &part.prims {
                 to_scene_order(&mut part.wide.prim_indices, prims);
             }
-            self.parts[k].bvh = Bvh::default();
             self.pack_part(k);
             let Part { wide, packed, .. } = &mut self.parts[k];
             wide.refit_packed(packed, n_tris, |p| sphere_bounds(&self.spheres, p));
