@@ -54,7 +54,7 @@ impl Film {
         assert_eq!(frame.len(), self.sum.len());
         // In parallel: one addition per pixel either way, so the same sums on any thread count.
         use rayon::prelude::*;
-        // `0.0 +` as before the sums were left uncleared: the same bits (a −0 sample sums to +0).
+        // `0.0 + v`, not `v`: the sums a zeroed film gave, to the bit (a −0 sample sums to +0).
         let fresh = self.samples == 0;
         self.sum.par_iter_mut().zip(self.sum_sq.par_iter_mut()).zip(frame).with_min_len(4096).for_each(
             |((s, q), x)| {

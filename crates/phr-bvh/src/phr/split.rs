@@ -66,13 +66,13 @@ pub fn best_split(cut: &mut [CutNode], weight: CutWeight, scratch: &mut SplitScr
         sort_keys(order);
     }
     scratch.right_area.resize(m, [0.0; 3]);
-    let ([x, y, z], boxes, weights) = (&scratch.orders, &scratch.boxes, &scratch.weights);
+    let (orders, boxes, weights) = (&scratch.orders, &scratch.boxes, &scratch.weights);
     let index = |order: &[u64], k: usize| (order[k] & 0xffff_ffff) as usize;
     let mut lo = [Vec3A::INFINITY; 3];
     let mut hi = [Vec3A::NEG_INFINITY; 3];
     for k in (1..m).rev() {
         let mut right = [0.0; 3];
-        for (axis, order) in [x, y, z].into_iter().enumerate() {
+        for (axis, order) in orders.iter().enumerate() {
             let b = &boxes[index(order, k)];
             (lo[axis], hi[axis]) = (lo[axis].min(b.0), hi[axis].max(b.1));
             right[axis] = area(lo[axis], hi[axis]);
@@ -86,7 +86,7 @@ pub fn best_split(cut: &mut [CutNode], weight: CutWeight, scratch: &mut SplitScr
     let mut hi = [Vec3A::NEG_INFINITY; 3];
     let mut left_weight = [0.0f32; 3];
     for k in 1..m {
-        for (axis, order) in [x, y, z].into_iter().enumerate() {
+        for (axis, order) in orders.iter().enumerate() {
             let i = index(order, k - 1);
             (lo[axis], hi[axis]) = (lo[axis].min(boxes[i].0), hi[axis].max(boxes[i].1));
             left_weight[axis] += weights[i];
@@ -238,6 +238,14 @@ fn ordered_bits(x: f32) -> u64 {
 mod tests {
     use super::*;
 
+    /// Marsaglia's xorshift64: the tests' random numbers, reproducible.
+    fn xorshift(state: &mut u64) -> u64 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        *state
+    }
+
     #[test]
     fn the_networks_sort_like_sort_unstable() {
         assert_eq!(batcher_len(8), 19);
@@ -246,14 +254,7 @@ mod tests {
         for m in 0..40 {
             for _ in 0..200 {
                 // Distinct keys, as best_split's (index in the low bits), some high bits equal.
-                let mut keys: Vec<u64> = (0..m)
-                    .map(|i| {
-                        state ^= state << 13;
-                        state ^= state >> 7;
-                        state ^= state << 17;
-                        ((state % 5) << 32) | i as u64
-                    })
-                    .collect();
+                let mut keys: Vec<u64> = (0..m).map(|i| ((xorshift(&mut state) % 5) << 32) | i as u64).collect();
                 let mut expected = keys.clone();
                 expected.sort_unstable();
                 sort_keys(&mut keys);
@@ -291,12 +292,7 @@ mod tests {
     #[test]
     fn the_sweep_chooses_as_the_plain_sweep_does() {
         let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = || (xorshift(&mut state) >> 40) as f32 / (1u64 << 24) as f32;
         let mut scratch = SplitScratch::default();
         for m in 3..70 {
             for weight in [CutWeight::Primitives, CutWeight::AuxNodes] {

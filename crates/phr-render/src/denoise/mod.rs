@@ -176,13 +176,9 @@ impl Guide {
     }
 
     /// The guide of one sample per pixel: each pixel's own camera ray's first hit (as
-    /// [`crate::render::Renderer::render_frame_guided`] returns them, row-major).
-    pub fn from_first_hits(camera: &Camera, width: u32, height: u32, hits: &[FirstHit]) -> Guide {
-        Self::from_first_hits_reusing(None, camera, width, height, hits)
-    }
-
-    /// [`Guide::from_first_hits`] in the memory of `old` (a moving view makes one guide a
-    /// frame: 2.6 MB at 256², which zeroing took 0.25 ms of on one thread).
+    /// [`crate::render::Renderer::render_frame_guided`] returns them, row-major), in the
+    /// memory of `old` if given (a moving view makes one guide a frame: 2.6 MB at 256², which
+    /// zeroing took 0.25 ms of on one thread).
     pub fn from_first_hits_reusing(
         old: Option<Guide>,
         camera: &Camera,
