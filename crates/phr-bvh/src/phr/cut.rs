@@ -10,6 +10,7 @@
 
 use super::aux_tree::{AuxNode, AuxTree};
 use crate::aabb::Aabb;
+use glam::Vec3A;
 use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -142,10 +143,14 @@ fn capped_cut(aux: &AuxTree, t0: f32, cap: usize) -> Vec<CutNode> {
     done
 }
 
-/// The union of the cut's boxes.
+/// The union of the cut's boxes, in SIMD registers (one `min` and one `max` per node where
+/// [`Aabb::union`] takes three of each; the same box, as boxes hold no NaN).
 #[inline]
 pub fn cut_bounds(cut: &[CutNode]) -> Aabb {
-    cut.iter().fold(Aabb::EMPTY, |b, n| b.union(n.bounds))
+    let (lo, hi) = cut.iter().fold((Vec3A::INFINITY, Vec3A::NEG_INFINITY), |(lo, hi), n| {
+        (lo.min(Vec3A::from(n.bounds.min)), hi.max(Vec3A::from(n.bounds.max)))
+    });
+    Aabb::new(lo.into(), hi.into())
 }
 
 /// Primitives under the cut.

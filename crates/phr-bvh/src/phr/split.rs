@@ -81,7 +81,7 @@ pub fn best_split(cut: &mut [CutNode], weight: CutWeight, scratch: &mut SplitScr
     }
     // Each axis's first cheapest position, then the axes in order, each kept only if
     // strictly cheaper: the choice of sweeping the axes one after the other.
-    let mut best_of = [(f32::INFINITY, m / 2); 3];
+    let mut best_of = [(f32::INFINITY, m / 2, 0.0f32); 3];
     let mut lo = [Vec3A::INFINITY; 3];
     let mut hi = [Vec3A::NEG_INFINITY; 3];
     let mut left_weight = [0.0f32; 3];
@@ -90,27 +90,40 @@ pub fn best_split(cut: &mut [CutNode], weight: CutWeight, scratch: &mut SplitScr
             let i = index(order, k - 1);
             (lo[axis], hi[axis]) = (lo[axis].min(boxes[i].0), hi[axis].max(boxes[i].1));
             left_weight[axis] += weights[i];
-            let cost = area(lo[axis], hi[axis]) * left_weight[axis]
-                + scratch.right_area[k][axis] * (total_weight - left_weight[axis]);
+            let left_area = area(lo[axis], hi[axis]);
+            let cost = left_area * left_weight[axis] + scratch.right_area[k][axis] * (total_weight - left_weight[axis]);
             if cost < best_of[axis].0 {
-                best_of[axis] = (cost, k);
+                best_of[axis] = (cost, k, left_area);
             }
         }
     }
-    let mut best = (f32::INFINITY, m / 2);
     let mut best_axis = None;
-    for (axis, &(cost, k)) in best_of.iter().enumerate() {
-        if cost < best.0 {
-            (best, best_axis) = ((cost, k), Some(axis));
+    let mut best_cost = f32::INFINITY;
+    for (axis, &(cost, _, _)) in best_of.iter().enumerate() {
+        if cost < best_cost {
+            (best_cost, best_axis) = (cost, Some(axis));
         }
     }
-    if let Some(axis) = best_axis {
-        scratch.reordered.clear();
-        scratch.reordered.extend(scratch.orders[axis].iter().map(|&key| cut[(key & 0xffff_ffff) as usize]));
-        cut.copy_from_slice(&scratch.reordered);
-    }
-    let left_len = best.1;
-    CutSplit { left_len, area_count: side_cost(&cut[..left_len]) + side_cost(&cut[left_len..]) }
+    let Some(axis) = best_axis else {
+        // No finite cost: the cut as it came, halved.
+        let left_len = m / 2;
+        return CutSplit { left_len, area_count: side_cost(&cut[..left_len]) + side_cost(&cut[left_len..]) };
+    };
+    scratch.reordered.clear();
+    scratch.reordered.extend(scratch.orders[axis].iter().map(|&key| cut[(key & 0xffff_ffff) as usize]));
+    cut.copy_from_slice(&scratch.reordered);
+    // Both sides' areas from the sweeps: the unions `side_cost` would form again, so the
+    // same bits (for finite boxes: with a NaN, a union depends on its order, and the right
+    // side's sweep runs backwards). `A · n` counts primitives whatever the sweep's weight.
+    let (_, left_len, left_area) = best_of[axis];
+    let left_prims: u32 = cut[..left_len].iter().map(|n| n.prims).sum();
+    let right_prims: u32 = cut[left_len..].iter().map(|n| n.prims).sum();
+    let area_count = left_area * left_prims as f32 + scratch.right_area[left_len][axis] * right_prims as f32;
+    debug_assert!(
+        cut.iter().any(|n| !(n.bounds.min.is_finite() && n.bounds.max.is_finite()))
+            || area_count.to_bits() == (side_cost(&cut[..left_len]) + side_cost(&cut[left_len..])).to_bits()
+    );
+    CutSplit { left_len, area_count }
 }
 
 /// Splits `cut` (at least two nodes) at its primitive median along the axis where the nodes'
