@@ -58,4 +58,4 @@ pub use ray::Ray;
 pub use refit::refit;
 pub use traverse::{any_hit, closest_hit, closest_hit_counted, TraversalStats};
 pub use validate::validate;
-pub use wide::{PackedTriangles, SimdLevel, WideBvh};
+pub use wide::{PackedTriangles, RefitAreas, SimdLevel, WideBvh};

@@ -95,7 +95,8 @@ pub fn wide_sah_cost<const N: usize>(wide: &WideBvh<N>, c: SahConstants) -> f64 
 /// The surface areas of a node's slots, `None` for the empty ones: what
 /// [`crate::Aabb::surface_area`] gives each slot's box, lane by lane so that the compiler
 /// can vectorise it (one box at a time, the sum took 1.6 ms of a dragon's frame in the
-/// viewer, which checks the cost of its refitted tree every frame).
+/// viewer, which costed its refitted tree this way every frame before it took the cost from
+/// the refit itself, [`crate::RefitAreas`]).
 #[inline]
 fn slot_areas<const N: usize>(node: &WideNode<N>) -> [Option<f32>; N] {
     let b = &node.bounds;

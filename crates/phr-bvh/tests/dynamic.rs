@@ -207,3 +207,42 @@ fn refitting_while_repacking_equals_repacking_then_refitting() {
         }
     }
 }
+
+/// Every refit returns the areas it computed ([`phr_bvh::RefitAreas`]), whose SAH cost is
+/// the refitted tree's ([`phr_bvh::wide_sah_cost`], summed in another order): through
+/// boxes, packed triangles and repacking, with the traversal and intersection constants
+/// apart, on a tree with leaves and interior slots side by side.
+#[test]
+fn a_refit_costs_the_tree_it_refits() {
+    use phr_bvh::{wide_sah_cost, PackedTriangles, SahConstants, WideBvh};
+    let mut rng = Rng::new(14);
+    let rest = random_soup(7000, 1.0, &mut rng);
+    let mut tree = WideBvh::<8>::default();
+    let boxes = triangle_boxes(&rest);
+    DynamicBvh::new(&boxes, PhrOptions::FAST).update_wide(&boxes, &mut tree);
+    assert!(tree
+        .nodes
+        .iter()
+        .any(|n| (0..8).any(|s| n.count[s] > 0) && (0..8).any(|s| n.count[s] == 0 && n.is_used(s))));
+    let mut packed = PackedTriangles::new(&tree.prim_indices, &rest);
+    let constants = [SahConstants::UNIT, SahConstants::THESIS, SahConstants { traversal: 0.5, intersection: 3.0 }];
+    for frame in 1..4 {
+        let f = frame as f32;
+        let shift = |v: Vec3| v + Vec3::new(0.3 * (2.0 * v.y + f).sin(), 0.1 * f, 0.2 * (3.0 * v.x - f).cos());
+        let tris: Vec<[Vec3; 3]> = rest.iter().map(|t| t.map(shift)).collect();
+        let moved = triangle_boxes(&tris);
+        let none = |_: u32| phr_bvh::Aabb::EMPTY;
+        let mut by_boxes = tree.clone();
+        let boxes_areas = by_boxes.refit(&moved);
+        let mut by_packed = tree.clone();
+        let packed_areas =
+            by_packed.refit_packed(&PackedTriangles::new(&by_packed.prim_indices, &tris), tris.len(), none);
+        let repacked_areas = tree.refit_repacking(&mut packed, &tris, none);
+        for (areas, refitted) in [(boxes_areas, &by_boxes), (packed_areas, &by_packed), (repacked_areas, &tree)] {
+            for c in constants {
+                let (got, want) = (areas.sah_cost(c), wide_sah_cost(refitted, c));
+                assert!((got - want).abs() <= 1e-9 * want, "frame {frame}, {c:?}: {got} against {want}");
+            }
+        }
+    }
+}

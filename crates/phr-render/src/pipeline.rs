@@ -654,6 +654,7 @@ impl FramePipeline {
         let boxes = std::mem::take(&mut self.part_boxes);
         match self.settings.builder {
             Builder::Phr(options) if asynchronous => {
+                // (It costs the refitted tree, `self.sah`.)
                 landed = self.refit_or_land(d, &boxes, options, report);
             }
             Builder::Phr(options) => {
@@ -682,7 +683,9 @@ impl FramePipeline {
             }
         }
         self.part_boxes = boxes;
-        self.sah = wide_sah_cost(self.geometry.part_wide(d), SahConstants::UNIT);
+        if !asynchronous {
+            self.sah = wide_sah_cost(self.geometry.part_wide(d), SahConstants::UNIT);
+        }
         self.apply_rebuild_policy(d, landed, report);
     }
 
@@ -719,9 +722,11 @@ impl FramePipeline {
         // (The build on this thread, the first time.)
         report.build_ms += ms_since(start);
         let mut landed = landed.or_else(|| rebuilder.finished());
-        let refit = self.geometry.refit_part(d, landed.as_mut().map(|l| &mut l.wide));
-        // The refit of the traced tree and the packing of the moved triangles.
+        let (refit, areas) = self.geometry.refit_part(d, landed.as_mut().map(|l| &mut l.wide));
+        // The refit of the traced tree and the packing of the moved triangles, which cost
+        // the tree as they go.
         report.refit_ms = refit.as_secs_f64() * 1e3;
+        self.sah = areas.sah_cost(SahConstants::UNIT);
         let is_new = landed.is_some();
         self.tree_age = match landed {
             Some(l) => {

@@ -82,6 +82,7 @@ pub mod simd;
 mod traverse;
 pub mod triangles;
 
+pub use refit::RefitAreas;
 pub use traverse::LeafVisitor;
 pub use triangles::PackedTriangles;
 

@@ -42,6 +42,7 @@ use phr_bvh::triangle::{intersect_triangle_edges, triangle_bounds};
 use phr_bvh::wide::triangles::{AnyTriangle, ClosestTriangle};
 use phr_bvh::wide::LeafVisitor;
 use phr_bvh::wide::{WideStats, PAD};
+use phr_bvh::RefitAreas;
 use phr_bvh::{closest_hit_counted, Aabb, Builder, Bvh, PackedTriangles, Ray, TraversalStats, WideBvh};
 use std::borrow::Cow;
 
@@ -561,14 +562,15 @@ impl Geometry {
     ///
     /// With `landed`, a tree built meanwhile (over the part's primitives numbered in its
     /// order, as [`Geometry::set_part_wide`] takes it) replaces the part's first, and the
-    /// replaced tree is left in `landed`.
-    pub fn refit_part(&mut self, k: usize, landed: Option<&mut WideBvh<WIDTH>>) -> std::time::Duration {
+    /// replaced tree is left in `landed`. Also returns the refitted tree's box areas, which
+    /// give its SAH cost ([`RefitAreas::sah_cost`]).
+    pub fn refit_part(&mut self, k: usize, landed: Option<&mut WideBvh<WIDTH>>) -> (std::time::Duration, RefitAreas) {
         let start = std::time::Instant::now();
         let n_tris = self.triangle_count();
         let sphere_bounds = |spheres: &[SphereObject], p: u32| spheres[p as usize - n_tris].sphere.bounds();
         // The binary tree (if the part was built through one) no longer fits the primitives.
         self.parts[k].bvh = Bvh::default();
-        if let Some(tree) = landed {
+        let areas = if let Some(tree) = landed {
             let part = &mut self.parts[k];
             std::mem::swap(&mut part.wide, tree);
             if let Some(prims) = &part.prims {
@@ -576,17 +578,18 @@ impl Geometry {
             }
             self.pack_part(k);
             let Part { wide, packed, .. } = &mut self.parts[k];
-            wide.refit_packed(packed, n_tris, |p| sphere_bounds(&self.spheres, p));
+            wide.refit_packed(packed, n_tris, |p| sphere_bounds(&self.spheres, p))
         } else {
             // The same tree: packed again as it is refitted, in one pass.
             let part = &mut self.parts[k];
             let (mut wide, mut packed) = (std::mem::take(&mut part.wide), std::mem::take(&mut part.packed));
-            wide.refit_repacking(&mut packed, self.scene_triangles(), |p| sphere_bounds(&self.spheres, p));
+            let areas = wide.refit_repacking(&mut packed, self.scene_triangles(), |p| sphere_bounds(&self.spheres, p));
             let part = &mut self.parts[k];
             (part.wide, part.packed, part.generation) = (wide, packed, next_generation());
-        }
+            areas
+        };
         self.update_part_bounds(k);
-        start.elapsed()
+        (start.elapsed(), areas)
     }
 
     /// Packs part `k`'s triangles in its wide tree's leaf order (into the previous frame's
