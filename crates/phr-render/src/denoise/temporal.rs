@@ -169,20 +169,30 @@ impl Temporal {
         });
         // The blend, row by row: this frame's illumination into the reprojected history.
         // `next.illumination` holds the blended illumination until the first pass replaces it.
+        // The surfaces the next frame reprojects onto are copied in the same pass, while the
+        // blend has them in the cache.
         let rows = (
             next.illumination.par_chunks_mut(w.max(1)),
             next.moments.par_chunks_mut(w.max(1)),
             next.length.par_chunks_mut(w.max(1)),
+            next.normal.par_chunks_mut(w.max(1)),
+            next.position.par_chunks_mut(w.max(1)),
         );
-        rows.into_par_iter().enumerate().for_each(|(y, (illumination_row, moments_row, length_row))| {
-            for (x, ((blended_illumination, moments), length)) in
-                illumination_row.iter_mut().zip(moments_row).zip(length_row).enumerate()
-            {
-                let i = y * w + x;
-                let blended = self.blend(colour[i] / albedo(i), guide, history.as_ref(), i);
-                (*blended_illumination, *moments, *length) = (blended.illumination, blended.moments, blended.length);
-            }
-        });
+        rows.into_par_iter().enumerate().for_each(
+            |(y, (illumination_row, moments_row, length_row, normal_row, position_row))| {
+                let row = y * w..(y + 1) * w;
+                normal_row.copy_from_slice(&guide.normal[row.clone()]);
+                position_row.copy_from_slice(&guide.position[row]);
+                for (x, ((blended_illumination, moments), length)) in
+                    illumination_row.iter_mut().zip(moments_row).zip(length_row).enumerate()
+                {
+                    let i = y * w + x;
+                    let blended = self.blend(colour[i] / albedo(i), guide, history.as_ref(), i);
+                    (*blended_illumination, *moments, *length) =
+                        (blended.illumination, blended.moments, blended.length);
+                }
+            },
+        );
         let mut memory = std::mem::take(&mut self.memory);
         let planes = GuidePlanes::reusing(memory.planes.take(), guide, self.atrous.passes);
         // The distances of the neighbours of a short history's variance, in pixels (at least
@@ -200,8 +210,6 @@ impl Temporal {
         (memory.planes, memory.signal) = (Some(planes), Some(filtered));
         self.memory = memory;
         next.camera.clone_from(camera);
-        next.normal.copy_from_slice(&guide.normal);
-        next.position.copy_from_slice(&guide.position);
         self.spare = history;
         self.history = Some(next);
         out
