@@ -224,6 +224,8 @@ fn a_refit_costs_the_tree_it_refits() {
         .nodes
         .iter()
         .any(|n| (0..8).any(|s| n.count[s] > 0) && (0..8).any(|s| n.count[s] == 0 && n.is_used(s))));
+    // More nodes than one of the refit's parallel chunks (256).
+    assert!(tree.nodes.len() > 512, "{} nodes", tree.nodes.len());
     let mut packed = PackedTriangles::new(&tree.prim_indices, &rest);
     let constants = [SahConstants::UNIT, SahConstants::THESIS, SahConstants { traversal: 0.5, intersection: 3.0 }];
     for frame in 1..4 {
@@ -245,4 +247,67 @@ fn a_refit_costs_the_tree_it_refits() {
             }
         }
     }
+}
+
+/// [`phr_bvh::RefitAreas`] at the edges: a tree that is one node of leaves (the root's box
+/// counted once, as the traversal step into it), and no tree at all.
+#[test]
+fn a_refit_costs_a_single_node_and_an_empty_tree() {
+    use phr_bvh::{wide_sah_cost, RefitAreas, SahConstants, WideBvh};
+    let mut rng = Rng::new(15);
+    let rest = random_soup(12, 1.0, &mut rng);
+    let boxes = triangle_boxes(&rest);
+    let mut tree = WideBvh::<8>::default();
+    DynamicBvh::new(&boxes, PhrOptions::FAST).update_wide(&boxes, &mut tree);
+    assert_eq!(tree.nodes.len(), 1, "not a single node");
+    let moved: Vec<_> = boxes.iter().map(|b| phr_bvh::Aabb::new(b.min * 1.5, b.max * 1.5)).collect();
+    let areas = tree.refit(&moved);
+    for c in [SahConstants::UNIT, SahConstants::THESIS] {
+        let (got, want) = (areas.sah_cost(c), wide_sah_cost(&tree, c));
+        assert!((got - want).abs() <= 1e-9 * want, "{c:?}: {got} against {want}");
+    }
+    let mut empty = WideBvh::<8>::default();
+    assert_eq!(empty.refit(&[]), RefitAreas::default());
+    assert_eq!(RefitAreas::default().sah_cost(SahConstants::UNIT), 0.0);
+}
+
+/// A subtree whose primitives' boxes are all empty for one frame (its slot's box empty) is
+/// refitted again the frame after: the refit tells interior slots by their child, not by
+/// their box.
+#[test]
+fn a_subtree_that_vanishes_for_a_frame_comes_back() {
+    use phr_bvh::{Aabb, WideBvh};
+    let mut rng = Rng::new(16);
+    let rest = random_soup(3000, 1.0, &mut rng);
+    let boxes = triangle_boxes(&rest);
+    let mut tree = WideBvh::<8>::default();
+    DynamicBvh::new(&boxes, PhrOptions::FAST).update_wide(&boxes, &mut tree);
+    // An interior child of the root, and the primitives under it.
+    let root = &tree.nodes[0];
+    let slot = (0..8).find(|&s| root.count[s] == 0 && root.child[s] != 0).expect("an interior slot");
+    let mut under = Vec::new();
+    let mut stack = vec![root.child[slot] as usize];
+    while let Some(i) = stack.pop() {
+        let n = &tree.nodes[i];
+        for s in 0..8 {
+            match (n.count[s], n.child[s]) {
+                (0, 0) => {}
+                (0, c) => stack.push(c as usize),
+                (count, first) => under.extend_from_slice(&tree.prim_indices[first as usize..(first + count) as usize]),
+            }
+        }
+    }
+    let mut gone = boxes.clone();
+    for &p in &under {
+        if (p as usize) < gone.len() {
+            gone[p as usize] = Aabb::EMPTY;
+        }
+    }
+    let mut want = tree.clone();
+    want.refit(&boxes);
+    tree.refit(&gone);
+    assert!(tree.nodes[0].child_bounds(slot).is_empty(), "the slot did not vanish");
+    tree.refit(&boxes);
+    let bits = |t: &WideBvh<8>| t.nodes.iter().map(|n| n.bounds.map(|row| row.map(f32::to_bits))).collect::<Vec<_>>();
+    assert!(bits(&tree) == bits(&want), "the subtree did not come back");
 }

@@ -113,14 +113,15 @@ pub fn best_split(cut: &mut [CutNode], weight: CutWeight, scratch: &mut SplitScr
     scratch.reordered.extend(scratch.orders[axis].iter().map(|&key| cut[(key & 0xffff_ffff) as usize]));
     cut.copy_from_slice(&scratch.reordered);
     // Both sides' areas from the sweeps: the unions `side_cost` would form again, so the
-    // same bits (for finite boxes: with a NaN, a union depends on its order, and the right
-    // side's sweep runs backwards). `A · n` counts primitives whatever the sweep's weight.
+    // same bits (for finite, non-empty boxes: with a NaN, a union depends on its order, and
+    // the right side's sweep runs backwards; an inverted box has no area in `side_cost`).
+    // `A · n` counts primitives whatever the sweep's weight.
     let (_, left_len, left_area) = best_of[axis];
     let left_prims: u32 = cut[..left_len].iter().map(|n| n.prims).sum();
     let right_prims: u32 = cut[left_len..].iter().map(|n| n.prims).sum();
     let area_count = left_area * left_prims as f32 + scratch.right_area[left_len][axis] * right_prims as f32;
     debug_assert!(
-        cut.iter().any(|n| !(n.bounds.min.is_finite() && n.bounds.max.is_finite()))
+        cut.iter().any(|n| !(n.bounds.min.is_finite() && n.bounds.max.is_finite()) || n.bounds.is_empty())
             || area_count.to_bits() == (side_cost(&cut[..left_len]) + side_cost(&cut[left_len..])).to_bits()
     );
     CutSplit { left_len, area_count }

@@ -558,12 +558,12 @@ impl Geometry {
     /// ([`WideBvh::refit_packed`]), so [`Geometry::boxes`] is neither read nor updated; when
     /// the tree stays, the triangles are packed as the leaves are boxed, in one pass
     /// ([`WideBvh::refit_repacking`], which needs the part's packed triangles to be its tree's,
-    /// as every method here that gives a part a tree packs them). Returns the time taken.
+    /// as every method here that gives a part a tree packs them).
     ///
     /// With `landed`, a tree built meanwhile (over the part's primitives numbered in its
     /// order, as [`Geometry::set_part_wide`] takes it) replaces the part's first, and the
-    /// replaced tree is left in `landed`. Also returns the refitted tree's box areas, which
-    /// give its SAH cost ([`RefitAreas::sah_cost`]).
+    /// replaced tree is left in `landed`. Returns the time taken and the refitted tree's box
+    /// areas, which give its SAH cost ([`RefitAreas::sah_cost`]).
     pub fn refit_part(&mut self, k: usize, landed: Option<&mut WideBvh<WIDTH>>) -> (std::time::Duration, RefitAreas) {
         let start = std::time::Instant::now();
         let n_tris = self.triangle_count();
