@@ -92,6 +92,17 @@ pub fn wide_sah_cost<const N: usize>(wide: &WideBvh<N>, c: SahConstants) -> f64 
     (traversal * root_area + chunk_sums.iter().sum::<f64>()) / root_area
 }
 
+impl crate::wide::RefitAreas {
+    /// [`wide_sah_cost`] of the tree a refit returned these areas for: the same terms, summed
+    /// in another order (within rounding of it; the same bits for any thread count).
+    pub fn sah_cost(&self, c: SahConstants) -> f64 {
+        if self.root <= 0.0 {
+            return 0.0;
+        }
+        (c.traversal as f64 * (self.root + self.interior) + c.intersection as f64 * self.leaves) / self.root
+    }
+}
+
 /// The surface areas of a node's slots, `None` for the empty ones: what
 /// [`crate::Aabb::surface_area`] gives each slot's box, lane by lane so that the compiler
 /// can vectorise it (one box at a time, the sum took 1.6 ms of a dragon's frame in the

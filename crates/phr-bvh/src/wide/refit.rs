@@ -19,7 +19,6 @@
 use super::triangles::{prefetch_read, widened, PackedTriangles, SharedEntries, LANES};
 use super::WideBvh;
 use crate::aabb::Aabb;
-use crate::metrics::SahConstants;
 use glam::Vec3;
 use std::ops::Range;
 
@@ -35,17 +34,6 @@ pub struct RefitAreas {
     pub interior: f64,
     /// Each leaf slot's box times its primitives.
     pub leaves: f64,
-}
-
-impl RefitAreas {
-    /// [`crate::wide_sah_cost`] of the refitted tree: the same terms, summed in another order
-    /// (within rounding of it; the same bits for any thread count).
-    pub fn sah_cost(&self, c: SahConstants) -> f64 {
-        if self.root <= 0.0 {
-            return 0.0;
-        }
-        (c.traversal as f64 * (self.root + self.interior) + c.intersection as f64 * self.leaves) / self.root
-    }
 }
 
 impl<const N: usize> WideBvh<N> {
