@@ -651,11 +651,12 @@ impl FramePipeline {
         }
         let build_start = Instant::now();
         let mut landed = false;
+        let mut refitted_sah = None;
         let boxes = std::mem::take(&mut self.part_boxes);
         match self.settings.builder {
             Builder::Phr(options) if asynchronous => {
-                // (It costs the refitted tree, `self.sah`.)
-                landed = self.refit_or_land(d, &boxes, options, report);
+                let (new_tree, sah) = self.refit_or_land(d, &boxes, options, report);
+                (landed, refitted_sah) = (new_tree, Some(sah));
             }
             Builder::Phr(options) => {
                 self.tree_age = 0;
@@ -683,9 +684,8 @@ impl FramePipeline {
             }
         }
         self.part_boxes = boxes;
-        if !asynchronous {
-            self.sah = wide_sah_cost(self.geometry.part_wide(d), SahConstants::UNIT);
-        }
+        // A refit costs its tree as it goes; a tree built here is costed now.
+        self.sah = refitted_sah.unwrap_or_else(|| wide_sah_cost(self.geometry.part_wide(d), SahConstants::UNIT));
         self.apply_rebuild_policy(d, landed, report);
     }
 
@@ -710,8 +710,15 @@ impl FramePipeline {
 
     /// The asynchronous update of the deforming part `d`: takes the worker's tree if one has
     /// landed (the first time, builds one here and starts the worker), refits the traced tree
-    /// to `boxes` and packs the triangles. Returns whether a new tree landed.
-    fn refit_or_land(&mut self, d: usize, boxes: &[Aabb], options: PhrOptions, report: &mut FrameReport) -> bool {
+    /// to `boxes` and packs the triangles. Returns whether a new tree landed, and the refitted
+    /// tree's SAH cost.
+    fn refit_or_land(
+        &mut self,
+        d: usize,
+        boxes: &[Aabb],
+        options: PhrOptions,
+        report: &mut FrameReport,
+    ) -> (bool, f64) {
         let start = Instant::now();
         let mut landed = None;
         if self.rebuilder.is_none() {
@@ -726,7 +733,6 @@ impl FramePipeline {
         // The refit of the traced tree and the packing of the moved triangles, which cost
         // the tree as they go.
         report.refit_ms = refit.as_secs_f64() * 1e3;
-        self.sah = areas.sah_cost(SahConstants::UNIT);
         let is_new = landed.is_some();
         self.tree_age = match landed {
             Some(l) => {
@@ -736,7 +742,7 @@ impl FramePipeline {
             }
             None => self.tree_age + 1,
         };
-        is_new
+        (is_new, areas.sah_cost(SahConstants::UNIT))
     }
 
     /// Cuts the scene into the two-level layout's parts and builds their trees.
