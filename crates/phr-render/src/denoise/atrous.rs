@@ -159,7 +159,7 @@ impl GuidePlanes {
         footprint.clone_from(&guide.footprint);
         let surface: Vec<f32> = guide.footprint.par_iter().map(|f| if *f > 0.0 { 1.0 } else { 0.0 }).collect();
         surface_blurred.resize(width * height, 0.0);
-        blur_3x3_into(&surface, width, height, 0, &mut surface_blurred, |_, sum| sum);
+        blur_3x3_into(&surface, width, height, 0, &mut surface_blurred, |_| true, |_, sum| sum);
         Self {
             width,
             height,
@@ -266,9 +266,9 @@ pub(crate) struct FilterMemory {
     blurred_layout: (usize, usize, usize),
 }
 
-/// What [`Atrous::row`] reads: the guide, the pass's signal and blurred variance, the row and
-/// the step.
-type RowArgs<'a> = (&'a GuidePlanes, &'a Signal, &'a [f32], usize, usize);
+/// What [`Atrous::row`] reads: the guide, the pass's signal and blurred variance, the row, the
+/// step, and where given the passes each pixel of the row needs with the pass's number.
+type RowArgs<'a> = (&'a GuidePlanes, &'a Signal, &'a [f32], usize, usize, Option<(&'a [u8], u8)>);
 
 /// Where [`Atrous::row`] writes row `y` of the pass's output: its padded rows (`stride`
 /// values) of the three colour planes, the variance and the luminance.
@@ -297,18 +297,23 @@ impl Atrous {
     /// this filter's passes, and `signal` laid out for it (its memory takes a later pass's
     /// output).
     pub(crate) fn filter(&self, guide: &GuidePlanes, signal: Signal, after_first: impl FnMut(&Signal)) -> Signal {
-        self.filter_reusing(guide, signal, &mut FilterMemory::default(), after_first)
+        self.filter_reusing(guide, signal, &mut FilterMemory::default(), None, after_first)
     }
 
     /// [`Atrous::filter`], taking the planes its passes write into from `memory` (when they
-    /// fit the guide) and leaving them there for the next call.
+    /// fit the guide) and leaving them there for the next call. With `needs` (a pass count
+    /// per pixel, row-major), a pass leaves alone the chunks of pixels that all need fewer
+    /// passes than it: their values go on as the pass before left them. The first pass runs
+    /// everywhere.
     pub(crate) fn filter_reusing(
         &self,
         guide: &GuidePlanes,
         mut signal: Signal,
         memory: &mut FilterMemory,
+        needs: Option<&[u8]>,
         mut after_first: impl FnMut(&Signal),
     ) -> Signal {
+        assert!(needs.is_none_or(|n| n.len() == guide.width * guide.height), "a pass count per pixel");
         // Each pass writes into the planes the pass before it read: one signal's memory more
         // for the whole filter, not one per pass.
         assert!(signal.fits(guide), "the signal was laid out for another guide");
@@ -324,8 +329,12 @@ impl Atrous {
             // centre taps.
             let Some(step) = 1usize.checked_shl(pass).filter(|s| *s <= isize::MAX as usize / 4) else { break };
             let mut out = spare.take().unwrap_or_else(|| Signal::empty(guide));
-            blurred_variance(guide, &signal, blurred);
-            self.pass(guide, &signal, blurred, step, &mut out);
+            let needs = needs.filter(|_| pass > 0).map(|n| (n, pass.min(u8::MAX as u32) as u8));
+            // Only the rows the pass filters read their blurred variance.
+            let w = guide.width;
+            let filtered = |y: usize| needs.is_none_or(|(n, pass)| n[y * w..(y + 1) * w].iter().any(|&k| k > pass));
+            blurred_variance(guide, &signal, blurred, filtered);
+            self.pass(guide, &signal, blurred, step, needs, &mut out);
             spare = Some(std::mem::replace(&mut signal, out));
             if pass == 0 {
                 after_first(&signal);
@@ -339,7 +348,15 @@ impl Atrous {
     /// after [`blurred_variance`]) into `out` (laid out for `guide` as `signal` is). Every
     /// pixel is written; the padding keeps its values (the lanes of a row's last chunk that
     /// fall in it write the same values again).
-    fn pass(&self, guide: &GuidePlanes, signal: &Signal, blurred: &[f32], step: usize, out: &mut Signal) {
+    fn pass(
+        &self,
+        guide: &GuidePlanes,
+        signal: &Signal,
+        blurred: &[f32],
+        step: usize,
+        needs: Option<(&[u8], u8)>,
+        out: &mut Signal,
+    ) {
         // Each row of `out` is one row of the image (the rows below take it so).
         assert!(out.fits(guide), "the output was laid out for another guide");
         let stride = guide.stride;
@@ -357,7 +374,8 @@ impl Atrous {
             out.lum.par_chunks_mut(stride),
         );
         rows.into_par_iter().enumerate().for_each(|(y, (r, g, b, var, lum))| {
-            let args = (guide, signal, blurred, y, step);
+            let row_needs = needs.map(|(n, pass)| (&n[y * guide.width..(y + 1) * guide.width], pass));
+            let args = (guide, signal, blurred, y, step, row_needs);
             let row = [r, g, b, var, lum];
             if widest {
                 // SAFETY: the CPU has AVX-512 F (checked above).
@@ -413,7 +431,7 @@ impl Atrous {
     /// # Safety
     /// The CPU must have what `V`'s operations use (see [`Lanes`]).
     #[inline(always)]
-    unsafe fn row<V: Lanes>(&self, (guide, taps, blurred, y, step): RowArgs, out: OutRow) {
+    unsafe fn row<V: Lanes>(&self, (guide, taps, blurred, y, step, needs): RowArgs, out: OutRow) {
         let (w, h, stride, pad) = (guide.width, guide.height, guide.stride, guide.pad);
         // Every plane the taps read holds `h` padded rows, and the farthest tap of a chunk
         // stays within its row's padding (the loads below rely on both).
@@ -424,6 +442,7 @@ impl Atrous {
         assert!(guide.normal.iter().chain(&guide.position).all(|p| p.len() == len));
         assert!(blurred.len() == len && guide.footprint_padded.len() == len);
         assert!(out.iter().all(|row| row.len() == stride));
+        assert!(needs.is_none_or(|(n, _)| n.len() == w));
         // The taps whose row lies in the image: kernel weight, 1 / offset length in steps
         // (the plane distance is per step of offset), offset in the padded planes.
         let mut tap_list = [(0.0f32, 0.0f32, 0isize); 25];
@@ -472,6 +491,29 @@ impl Atrous {
                     }
                     infinity.store(out_lum.as_mut_ptr().add(o));
                     continue;
+                }
+                if let Some((needs, pass)) = needs {
+                    // The most passes a pixel of the chunk needs (the first always runs).
+                    let most = needs[x0..(x0 + V::N).min(w)].iter().fold(1, |m, &n| m.max(n));
+                    if most < pass {
+                        // Done two passes ago or more: the output's memory, which held the
+                        // output of the pass before last, holds the chunk's values since.
+                        continue;
+                    }
+                    if most == pass {
+                        // Done: the chunk's values (its lanes in the padding included, which
+                        // hold the padding's own) go on as they are.
+                        for (plane, out) in [r, g, b, &taps.var, &taps.lum].into_iter().zip([
+                            &mut *out_r,
+                            &mut *out_g,
+                            &mut *out_b,
+                            &mut *out_var,
+                            &mut *out_lum,
+                        ]) {
+                            at(plane, c).store(out.as_mut_ptr().add(o));
+                        }
+                        continue;
+                    }
                 }
                 let (pnx, pny, pnz) = (at(nx, c), at(ny, c), at(nz, c));
                 let (ppx, ppy, ppz) = (at(px, c), at(py, c), at(pz, c));
@@ -536,10 +578,11 @@ unsafe fn luminance_lanes<V: Lanes>(r: V, g: V, b: V) -> V {
 
 /// The variance smoothed by a 3×3 Gaussian over surface pixels, as SVGF does before each pass:
 /// one pixel's variance estimate from few samples is itself noisy. Into `out`, laid out as
-/// the signal's planes (its padding is left as it is, 0 in every caller's).
-fn blurred_variance(guide: &GuidePlanes, signal: &Signal, out: &mut [f32]) {
+/// the signal's planes (its padding is left as it is, 0 in every caller's), in the rows `y`
+/// for which `rows(y)` holds (the others are left as they are).
+fn blurred_variance(guide: &GuidePlanes, signal: &Signal, out: &mut [f32], rows: impl Fn(usize) -> bool + Sync) {
     let surface = &guide.surface_blurred;
-    blur_3x3_into(&signal.var, guide.width, guide.height, guide.pad, out, |i, sum| {
+    blur_3x3_into(&signal.var, guide.width, guide.height, guide.pad, out, rows, |i, sum| {
         let weight = surface[i];
         // (Both sides computed, so that the loop vectorises; the division's result off
         // surfaces is not used.)
@@ -554,8 +597,8 @@ fn blurred_variance(guide: &GuidePlanes, signal: &Signal, out: &mut [f32]) {
 
 /// `plane` (`w × h`, rows of `w` values with `pad` more on each side) under the separable 3×3
 /// kernel (¼, ½, ¼)², zero outside the image, each pixel's sum through `finish(pixel, sum)`,
-/// into `out` laid out as `plane` (the padding left as it is); one pass over the rows, in
-/// parallel (each row computes the horizontal sums of its three rows itself, from copies
+/// into `out` laid out as `plane` (the padding left as it is), in the rows `y` for which
+/// `rows(y)` holds (the others left as they are); one pass over the rows, in parallel (each row computes the horizontal sums of its three rows itself, from copies
 /// with a zero at each end: a loop without a test per pixel, which the compiler vectorises).
 fn blur_3x3_into(
     plane: &[f32],
@@ -563,6 +606,7 @@ fn blur_3x3_into(
     h: usize,
     pad: usize,
     out: &mut [f32],
+    rows: impl Fn(usize) -> bool + Sync,
     finish: impl Fn(usize, f32) -> f32 + Sync,
 ) {
     const GAUSS: [f32; 3] = [0.25, 0.5, 0.25];
@@ -587,6 +631,9 @@ fn blur_3x3_into(
     out.par_chunks_mut(stride.max(1)).enumerate().for_each_init(
         || (Vec::with_capacity(w + 2), vec![0.0; 3 * w]),
         |(edged, sums), (y, row_out)| {
+            if !rows(y) {
+                return;
+            }
             let (up, rest) = sums.split_at_mut(w);
             let (this, down) = rest.split_at_mut(w);
             across(y.checked_sub(1), edged, up);
@@ -693,7 +740,7 @@ mod tests {
         let planes = GuidePlanes::new(&guide, 5);
         let signal = Signal::new(&planes, &colour, &var);
         let mut blurred = vec![0.0; planes.stride * planes.height];
-        blurred_variance(&planes, &signal, &mut blurred);
+        blurred_variance(&planes, &signal, &mut blurred, |_| true);
         let atrous = Atrous::default();
         // The output rows a variant writes: the padding holds the values of pixels off
         // surfaces (as the planes' padding does), the image a NaN that every pixel must
@@ -711,7 +758,7 @@ mod tests {
         let mut compared = 0;
         for step in [1, 2, 4, 16] {
             for y in 0..h as usize {
-                let args = (&planes, &signal, &blurred[..], y, step);
+                let args = (&planes, &signal, &blurred[..], y, step, None);
                 let plain = rows(&|out| atrous.row_portable(args, out));
                 let pad = planes.pad;
                 let on_surface = (0..w as usize).filter(|&x| plain[4][pad + x].is_finite()).collect::<Vec<_>>();
@@ -744,6 +791,44 @@ mod tests {
         #[cfg(target_arch = "x86_64")]
         assert!(compared > 0 || !std::arch::is_x86_feature_detected!("avx2"));
         let _ = compared;
+    }
+
+    /// With a pass count per pixel, a chunk all of whose pixels need `k` passes ends with the
+    /// values of `k` passes (the first always runs), through the chunk's copy in the first
+    /// pass it skips and the memory two passes back after that; the other pixels are
+    /// filtered on. The filter's memory holds a previous image's planes, as the temporal
+    /// filter's does.
+    #[test]
+    fn each_pixel_gets_the_passes_it_needs() {
+        let guide = wall();
+        let planes = GuidePlanes::new(&guide, 4);
+        let (colour, var) = noisy(|i| if (i as u32 % W) < W / 2 { 0.3 } else { 0.6 }, 0.1, 7);
+        let var: Vec<f32> = var.iter().map(|v| v.x).collect();
+        let signal = || Signal::new(&planes, &colour, &var);
+        let bits = |s: &Signal| s.pixels().iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+        let mut memory = FilterMemory::default();
+        let mut filtered = |passes: u32, needs: Option<&[u8]>| {
+            // A first image fills the memory that the second's passes write into.
+            let (other, _) = noisy(|_| 0.9, 0.2, 8);
+            let atrous = Atrous { passes, ..Atrous::default() };
+            let used = atrous.filter_reusing(&planes, Signal::new(&planes, &other, &var), &mut memory, needs, |_| {});
+            let out = atrous.filter_reusing(&planes, signal(), &mut memory, needs, |_| {});
+            memory.spare = Some(used);
+            out
+        };
+        let n = (W * H) as usize;
+        let plain: Vec<Signal> = (0..=4).map(|passes| filtered(passes, None)).collect();
+        for k in 0..=4u8 {
+            let got = filtered(4, Some(&vec![k; n]));
+            assert_eq!(bits(&got), bits(&plain[k.max(1) as usize]), "every pixel needs {k} passes");
+        }
+        // The left 16 columns (whole chunks of every lane width) need one pass, the rest four.
+        let needs: Vec<u8> = (0..n).map(|i| if (i as u32 % W) < 16 { 1 } else { 4 }).collect();
+        let (got, one) = (filtered(4, Some(&needs)).pixels(), plain[1].pixels());
+        for i in 0..n {
+            let left = (i as u32 % W) < 16;
+            assert_eq!(got[i] == one[i], left, "pixel {i}: {} against one pass's {}", got[i], one[i]);
+        }
     }
 
     #[test]

@@ -10,8 +10,9 @@
 //! again. The first and second moments of the luminance are blended the same way; their
 //! difference is the sample variance, estimated over the 7×7 neighbours of the same surface
 //! while a pixel has fewer than [`SPATIAL_VARIANCE_UNTIL`] frames. The à-trous passes then
-//! filter the blended illumination with that variance, and the first pass's output becomes the
-//! history (SVGF's choice: the history is smoother, so the image is steadier).
+//! filter the blended illumination with that variance (all of them where the history is
+//! short, fewer where it is long: [`Temporal::converged_passes`]), and the first pass's output
+//! becomes the history (SVGF's choice: the history is smoother, so the image is steadier).
 
 use super::atrous::{luminance, Atrous, FilterMemory, GuidePlanes, Signal, MIN_ALBEDO};
 use super::Guide;
@@ -50,6 +51,10 @@ const VARIANCE_RADIUS: usize = 3;
 /// The distances of [`VARIANCE_RADIUS`]'s neighbours by |dy| and |dx|.
 type Distances = [[f32; VARIANCE_RADIUS + 1]; VARIANCE_RADIUS + 1];
 
+/// A pixel with fewer frames of history than this gets all of the spatial filter's passes;
+/// one with more, only [`Temporal::converged_passes`].
+pub const ALL_PASSES_UNTIL: f32 = 4.0;
+
 /// History lengths stop growing here (only the blend weight's floor matters beyond).
 const MAX_HISTORY: f32 = 256.0;
 
@@ -58,6 +63,11 @@ const MAX_HISTORY: f32 = 256.0;
 #[derive(Debug)]
 pub struct Temporal {
     pub atrous: Atrous,
+    /// The spatial filter's passes over pixels with a history of [`ALL_PASSES_UNTIL`] frames
+    /// or more (at most `atrous.passes`): their blended samples are already smooth, and the
+    /// later passes would only blur them further. Pixels with a shorter history (a
+    /// disocclusion, the first frames) get all the passes.
+    pub converged_passes: u32,
     /// Smallest weight of a new frame in the blend (`1/length` before that: a plain mean). SVGF
     /// uses 0.2; lower is smoother and lags more behind moving light.
     pub min_alpha: f32,
@@ -75,6 +85,8 @@ struct Memory {
     planes: Option<GuidePlanes>,
     signal: Option<Signal>,
     filter: FilterMemory,
+    /// The passes each pixel needs.
+    needs: Vec<u8>,
 }
 
 impl std::fmt::Debug for Memory {
@@ -88,6 +100,7 @@ impl Clone for Temporal {
     fn clone(&self) -> Self {
         Self {
             atrous: self.atrous,
+            converged_passes: self.converged_passes,
             min_alpha: self.min_alpha,
             history: self.history.clone(),
             spare: None,
@@ -101,10 +114,14 @@ impl Default for Temporal {
     /// the later passes only blurred (`tests/pipeline.rs`, the moving Cornell box, RMSE of the
     /// last frame: 0.00730 with five, 0.00696 with four, 0.00688 with three; the same frame
     /// with no history 0.0472 with four, 0.0473 with three, 0.0481 with two), and each costs
-    /// a quarter of the filter's time.
+    /// a quarter of the filter's time. Pixels with a history then get two passes: the moving
+    /// views of the four reference scenes (16 frames) came out as close to the references as
+    /// with three (RMSE within −2 % … +4 %), and one pass was 13 % worse on the glass and
+    /// mirror scene (`docs/dynamic/history.md`).
     fn default() -> Self {
         Self {
             atrous: Atrous { passes: 3, ..Atrous::default() },
+            converged_passes: 2,
             min_alpha: 0.1,
             history: None,
             spare: None,
@@ -171,7 +188,11 @@ impl Temporal {
         // `next.illumination` holds the blended illumination until the first pass replaces it.
         // The surfaces the next frame reprojects onto are copied in the same pass, while the
         // blend has them in the cache.
+        let mut memory = std::mem::take(&mut self.memory);
+        memory.needs.resize(w * h, 0);
+        let (all_passes, converged_passes) = (self.atrous.passes.min(255) as u8, self.converged_passes.min(255) as u8);
         let rows = (
+            memory.needs.par_chunks_mut(w.max(1)),
             next.illumination.par_chunks_mut(w.max(1)),
             next.moments.par_chunks_mut(w.max(1)),
             next.length.par_chunks_mut(w.max(1)),
@@ -179,21 +200,21 @@ impl Temporal {
             next.position.par_chunks_mut(w.max(1)),
         );
         rows.into_par_iter().enumerate().for_each(
-            |(y, (illumination_row, moments_row, length_row, normal_row, position_row))| {
+            |(y, (needs_row, illumination_row, moments_row, length_row, normal_row, position_row))| {
                 let row = y * w..(y + 1) * w;
                 normal_row.copy_from_slice(&guide.normal[row.clone()]);
                 position_row.copy_from_slice(&guide.position[row]);
-                for (x, ((blended_illumination, moments), length)) in
-                    illumination_row.iter_mut().zip(moments_row).zip(length_row).enumerate()
+                for (x, (((blended_illumination, moments), length), needs)) in
+                    illumination_row.iter_mut().zip(moments_row).zip(length_row).zip(needs_row).enumerate()
                 {
                     let i = y * w + x;
                     let blended = self.blend(colour[i] / albedo(i), guide, history.as_ref(), i);
                     (*blended_illumination, *moments, *length) =
                         (blended.illumination, blended.moments, blended.length);
+                    *needs = if blended.length < ALL_PASSES_UNTIL { all_passes } else { converged_passes };
                 }
             },
         );
-        let mut memory = std::mem::take(&mut self.memory);
         let planes = GuidePlanes::reusing(memory.planes.take(), guide, self.atrous.passes);
         // The distances of the neighbours of a short history's variance, in pixels (at least
         // 1), by |dy| and |dx|.
@@ -202,9 +223,9 @@ impl Temporal {
         let signal = Signal::from_fn_reusing(memory.signal.take(), &planes, |i| {
             (next.illumination[i], self.variance(guide, &next, &distances, i))
         });
-        let filtered = self
-            .atrous
-            .filter_reusing(&planes, signal, &mut memory.filter, |first| first.pixels_into(&mut next.illumination));
+        let filtered = self.atrous.filter_reusing(&planes, signal, &mut memory.filter, Some(&memory.needs), |first| {
+            first.pixels_into(&mut next.illumination)
+        });
         let mut out = vec![Vec3::ZERO; w * h];
         filtered.pixels_into_with(&mut out, |i, p| if guide.footprint[i] > 0.0 { p * albedo(i) } else { colour[i] });
         (memory.planes, memory.signal) = (Some(planes), Some(filtered));
@@ -424,6 +445,23 @@ mod tests {
             let made = fresh.denoise(&colour, &guide, &camera);
             let bits = |image: &[Vec3]| image.iter().map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
             assert_eq!(bits(&reused), bits(&made), "frame {step}");
+        }
+    }
+
+    /// A pixel without a history yet gets all of the spatial filter's passes, whatever
+    /// `converged_passes` says; once its history is long enough, it gets `converged_passes`.
+    #[test]
+    fn short_histories_get_all_passes() {
+        let (camera, guide) = view(0.0);
+        let mut rng = Pcg32::new(5, 1);
+        let frames: Vec<Vec<Vec3>> = (0..6).map(|_| frame(&guide, |x| 0.4 + 0.02 * x, 0.3, &mut rng)).collect();
+        let bits = |image: &[Vec3]| image.iter().map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+        let (mut one, mut all) = (Temporal { converged_passes: 1, ..Temporal::default() }, Temporal::default());
+        all.converged_passes = all.atrous.passes;
+        for (k, colour) in frames.iter().enumerate() {
+            let (a, b) = (one.denoise(colour, &guide, &camera), all.denoise(colour, &guide, &camera));
+            let short = (k as f32 + 1.0) < ALL_PASSES_UNTIL;
+            assert_eq!(bits(&a) == bits(&b), short, "frame {k}");
         }
     }
 
