@@ -19,6 +19,7 @@
 
 pub mod aux_tree;
 pub mod cut;
+mod key_sort;
 pub mod split;
 pub mod wide;
 

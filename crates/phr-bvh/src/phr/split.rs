@@ -12,6 +12,7 @@
 //! every other builder. The cut is reordered and split in place: no allocation.
 
 use super::cut::{node_key, CutNode};
+use super::key_sort::{sort_keys, sort_three};
 use super::CutWeight;
 use crate::aabb::Aabb;
 use glam::Vec3A;
@@ -104,8 +105,9 @@ pub const BINNED_AXIS_FROM: usize = 32;
 fn sweep_three_axes(scratch: &mut SplitScratch, total_weight: f32) -> (Option<usize>, [(f32, usize, f32); 3]) {
     let m = scratch.boxes.len();
     for (axis, order) in scratch.orders.iter_mut().enumerate() {
-        sorted_keys(&scratch.boxes, axis, order);
+        fill_keys(&scratch.boxes, axis, order);
     }
+    sort_three(&mut scratch.orders);
     scratch.right_area.resize(m, [0.0; 3]);
     let (orders, boxes, weights) = (&scratch.orders, &scratch.boxes, &scratch.weights);
     let index = |order: &[u64], k: usize| (order[k] & 0xffff_ffff) as usize;
@@ -151,7 +153,8 @@ fn sweep_three_axes(scratch: &mut SplitScratch, total_weight: f32) -> (Option<us
 /// [`sweep_three_axes`] along `axis` alone: its first cheapest position.
 fn sweep_one_axis(axis: usize, scratch: &mut SplitScratch, total_weight: f32) -> (f32, usize, f32) {
     let m = scratch.boxes.len();
-    sorted_keys(&scratch.boxes, axis, &mut scratch.orders[axis]);
+    fill_keys(&scratch.boxes, axis, &mut scratch.orders[axis]);
+    sort_keys(&mut scratch.orders[axis]);
     scratch.right_area.resize(m, [0.0; 3]);
     let (order, boxes, weights) = (&scratch.orders[axis], &scratch.boxes, &scratch.weights);
     let index = |k: usize| (order[k] & 0xffff_ffff) as usize;
@@ -176,12 +179,11 @@ fn sweep_one_axis(axis: usize, scratch: &mut SplitScratch, total_weight: f32) ->
     best
 }
 
-/// The keys of `boxes` along `axis` into `order`, sorted: the centroid coordinate's
-/// order-preserving bits above the node's position (ties go by position).
-fn sorted_keys(boxes: &[(Vec3A, Vec3A)], axis: usize, order: &mut Vec<u64>) {
+/// The keys of `boxes` along `axis` into `order`: the centre coordinate's order-preserving
+/// bits above the node's position (so that ties go by position).
+fn fill_keys(boxes: &[(Vec3A, Vec3A)], axis: usize, order: &mut Vec<u64>) {
     order.clear();
     order.extend(boxes.iter().enumerate().map(|(i, (lo, hi))| (ordered_bits(lo[axis] + hi[axis]) << 32) | i as u64));
-    sort_keys(order);
 }
 
 /// The bins of [`binned_axis`].
@@ -275,75 +277,6 @@ pub fn median_split(cut: &mut [CutNode]) -> CutSplit {
     CutSplit { left_len, area_count: side_cost(&cut[..left_len]) + side_cost(&cut[left_len..]) }
 }
 
-/// Sorts distinct keys: small sets through a sorting network (Batcher's odd-even merge sort,
-/// padded to 8 or 16 keys with `u64::MAX`), whose compare-exchanges are branch-free, where
-/// insertion sort's comparisons mispredicted; larger ones with `sort_unstable`.
-fn sort_keys(keys: &mut Vec<u64>) {
-    fn network<const N: usize, const K: usize>(keys: &mut Vec<u64>, pairs: &[(u8, u8); K]) {
-        let m = keys.len();
-        keys.resize(N, u64::MAX);
-        let a: &mut [u64; N] = (&mut keys[..]).try_into().expect("resized to N");
-        for &(i, j) in pairs {
-            let (x, y) = (a[i as usize], a[j as usize]);
-            (a[i as usize], a[j as usize]) = (x.min(y), x.max(y));
-        }
-        keys.truncate(m);
-    }
-    match keys.len() {
-        0..=8 => network::<8, { batcher_len(8) }>(keys, &const { batcher_pairs::<{ batcher_len(8) }>(8) }),
-        9..=16 => network::<16, { batcher_len(16) }>(keys, &const { batcher_pairs::<{ batcher_len(16) }>(16) }),
-        _ => keys.sort_unstable(),
-    }
-}
-
-/// Most compare-exchanges [`batcher`] makes (those of 16 inputs).
-const BATCHER_MAX: usize = 63;
-
-/// The compare-exchange pairs of Batcher's odd-even merge sort of `n` inputs (a power of two,
-/// at most 16), in order, and their number.
-const fn batcher(n: usize) -> ([(u8, u8); BATCHER_MAX], usize) {
-    let mut pairs = [(0u8, 0u8); BATCHER_MAX];
-    let mut count = 0;
-    let mut p = 1;
-    while p < n {
-        let mut k = p;
-        while k >= 1 {
-            let mut j = k % p;
-            while j + k < n {
-                let mut i = 0;
-                while i < k && i + j + k < n {
-                    if (i + j) / (2 * p) == (i + j + k) / (2 * p) {
-                        pairs[count] = ((i + j) as u8, (i + j + k) as u8);
-                        count += 1;
-                    }
-                    i += 1;
-                }
-                j += 2 * k;
-            }
-            k /= 2;
-        }
-        p *= 2;
-    }
-    (pairs, count)
-}
-
-/// The `K` ([`batcher_len`]) compare-exchange pairs of [`batcher`]`(n)`.
-const fn batcher_pairs<const K: usize>(n: usize) -> [(u8, u8); K] {
-    let (all, count) = batcher(n);
-    assert!(count == K, "K must be batcher_len(n)");
-    let mut pairs = [(0u8, 0u8); K];
-    let mut i = 0;
-    while i < K {
-        pairs[i] = all[i];
-        i += 1;
-    }
-    pairs
-}
-
-const fn batcher_len(n: usize) -> usize {
-    batcher(n).1
-}
-
 /// The surface area of the non-empty box `lo..hi`, in SIMD registers (the sweeps' boxes: the
 /// scalar `Aabb` form was most of their time).
 #[inline(always)]
@@ -382,23 +315,6 @@ mod tests {
         *state ^= *state >> 7;
         *state ^= *state << 17;
         *state
-    }
-
-    #[test]
-    fn the_networks_sort_like_sort_unstable() {
-        assert_eq!(batcher_len(8), 19);
-        assert_eq!(batcher_len(16), 63);
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        for m in 0..40 {
-            for _ in 0..200 {
-                // Distinct keys, as best_split's (index in the low bits), some high bits equal.
-                let mut keys: Vec<u64> = (0..m).map(|i| ((xorshift(&mut state) % 5) << 32) | i as u64).collect();
-                let mut expected = keys.clone();
-                expected.sort_unstable();
-                sort_keys(&mut keys);
-                assert_eq!(keys, expected, "{m} keys");
-            }
-        }
     }
 
     /// The plain full sweep: each of `axes` in turn, the nodes sorted by centre (ties by
