@@ -163,10 +163,9 @@ mod avx512 {
     /// [`super::sort_three`] for sets of at most 16 keys: each set in one register (up to
     /// 8 keys) or two, padded with `u64::MAX`, the three through each layer side by side.
     ///
-    /// # Safety
-    /// The CPU must have AVX-512 F.
+    /// Call it only where the CPU has AVX-512 F.
     #[target_feature(enable = "avx512f")]
-    pub(super) unsafe fn sort_three(orders: &mut [Vec<u64>; 3]) {
+    pub(super) fn sort_three(orders: &mut [Vec<u64>; 3]) {
         let m = orders[0].len();
         assert!(m <= 16 && orders.iter().all(|o| o.len() == m));
         let padding = _mm512_set1_epi64(-1);
@@ -174,7 +173,6 @@ mod avx512 {
         // lie within the set's `m` keys.
         if m <= 8 {
             let k = ((1u32 << m) - 1) as __mmask8;
-            // (Loops, not closures: a closure does not take on the function's AVX-512.)
             let mut v = [padding; 3];
             for (x, o) in v.iter_mut().zip(orders.iter()) {
                 *x = unsafe { _mm512_mask_loadu_epi64(padding, k, o.as_ptr().cast()) };

@@ -4,7 +4,7 @@
 //!
 //! The root's cut is the auxiliary tree's nodes at the scale of `t(0) = S / 2^δ`
 //! ([`cut::initial_cut`]). Each node splits its cut with a full-sweep SAH over the cut's nodes
-//! ([`split::best_split`]), then refines each half: nodes with area at or above
+//! ([`split::best_split`]; a large cut along one axis, chosen by binning), then refines each half: nodes with area at or above
 //! `t(d) = S / 2^(α d + δ)` are replaced by their children ([`AuxTree::refine_into`]). Larger α and δ
 //! refine sooner, so the splits see more, smaller nodes: better trees, slower builds. The
 //! build cost `b = Σ |cut|` over all processed cuts is the thesis's proxy for build time.

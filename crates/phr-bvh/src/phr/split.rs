@@ -30,15 +30,16 @@ pub struct CutSplit {
 pub struct SplitScratch {
     /// Per position, the area of the union of the nodes from there on, on each axis.
     right_area: Vec<[f32; 3]>,
-    /// The nodes' keys sorted along each axis.
+    /// The nodes' keys sorted along each axis swept.
     orders: [Vec<u64>; 3],
     reordered: Vec<CutNode>,
     boxes: Vec<(Vec3A, Vec3A)>,
     weights: Vec<f32>,
 }
 
-/// Finds the best full-sweep split of `cut` (at least two nodes) over the three axes and
-/// leaves `cut` ordered along the best axis.
+/// Finds the best full-sweep split of `cut` (at least two nodes) over the three axes (over
+/// the axis [`binned_axis`] picks from [`BINNED_AXIS_FROM`] nodes on) and leaves `cut`
+/// ordered along the best axis.
 ///
 /// Sorting moves 8-byte integer keys (the centroid coordinate's order-preserving bits above
 /// the node's position, so ties go by position), not the nodes; the nodes are permuted once,
@@ -64,7 +65,8 @@ pub fn best_split(cut: &mut [CutNode], weight: CutWeight, scratch: &mut SplitScr
         let best = sweep_one_axis(axis, scratch, total_weight);
         let mut best_of = [(f32::INFINITY, m / 2, 0.0f32); 3];
         best_of[axis] = best;
-        (best.0.is_finite().then_some(axis), best_of)
+        // (The three-axis sweep's rule: any cost below infinity.)
+        ((best.0 < f32::INFINITY).then_some(axis), best_of)
     } else {
         sweep_three_axes(scratch, total_weight)
     };
@@ -394,6 +396,28 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// A large cut with boxes that are NaN, infinite or flat is still split, into two
+    /// non-empty sides holding its nodes.
+    #[test]
+    fn a_large_cut_of_broken_boxes_is_split() {
+        let mut scratch = SplitScratch::default();
+        for broken in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 0.0] {
+            let cut: Vec<CutNode> = (0..BINNED_AXIS_FROM as u32 + 9)
+                .map(|i| {
+                    let lo = glam::Vec3::new(i as f32, (i % 3) as f32, 0.0);
+                    let hi = if i % 4 == 1 { glam::Vec3::new(broken, 1.0, broken) } else { lo + glam::Vec3::ONE };
+                    CutNode { bounds: Aabb::new(lo, hi), first: i, prims: 1 }
+                })
+                .collect();
+            let mut got = cut.clone();
+            let split = best_split(&mut got, CutWeight::Primitives, &mut scratch);
+            assert!((1..cut.len()).contains(&split.left_len), "{broken}: {} of {}", split.left_len, cut.len());
+            let mut firsts: Vec<u32> = got.iter().map(|n| n.first).collect();
+            firsts.sort_unstable();
+            assert_eq!(firsts, (0..cut.len() as u32).collect::<Vec<_>>(), "{broken}");
         }
     }
 

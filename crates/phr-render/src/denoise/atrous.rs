@@ -302,9 +302,9 @@ impl Atrous {
 
     /// [`Atrous::filter`], taking the planes its passes write into from `memory` (when they
     /// fit the guide) and leaving them there for the next call. With `needs` (a pass count
-    /// per pixel, row-major), a pass leaves alone the chunks of pixels that all need fewer
-    /// passes than it: their values go on as the pass before left them. The first pass runs
-    /// everywhere.
+    /// per pixel, row-major), a pass leaves alone each group of [`MAX_LANES`] pixels of a row
+    /// (from its start) whose pixels all need fewer passes than it: their values go on as the
+    /// pass before left them. The first pass runs everywhere.
     pub(crate) fn filter_reusing(
         &self,
         guide: &GuidePlanes,
@@ -346,8 +346,9 @@ impl Atrous {
 
     /// One pass with taps `step` pixels apart, from `signal` (whose variance is `blurred`
     /// after [`blurred_variance`]) into `out` (laid out for `guide` as `signal` is). Every
-    /// pixel is written; the padding keeps its values (the lanes of a row's last chunk that
-    /// fall in it write the same values again).
+    /// pixel is written, but those of the groups that `needs` says are done (see
+    /// [`Atrous::filter_reusing`]); the padding keeps its values (the lanes of a row's last
+    /// chunk that fall in it write the same values again).
     fn pass(
         &self,
         guide: &GuidePlanes,
@@ -493,8 +494,11 @@ impl Atrous {
                     continue;
                 }
                 if let Some((needs, pass)) = needs {
-                    // The most passes a pixel of the chunk needs (the first always runs).
-                    let most = needs[x0..(x0 + V::N).min(w)].iter().fold(1, |m, &n| m.max(n));
+                    // The most passes a pixel of the chunk's group of `MAX_LANES` needs (the
+                    // first always runs): the same groups for every lane width, so that every
+                    // compiled loop gives the same image.
+                    let group = x0 / MAX_LANES * MAX_LANES;
+                    let most = needs[group..(group + MAX_LANES).min(w)].iter().fold(1, |m, &n| m.max(n));
                     if most < pass {
                         // Done two passes ago or more: the output's memory, which held the
                         // output of the pass before last, holds the chunk's values since.
@@ -598,8 +602,9 @@ fn blurred_variance(guide: &GuidePlanes, signal: &Signal, out: &mut [f32], rows:
 /// `plane` (`w × h`, rows of `w` values with `pad` more on each side) under the separable 3×3
 /// kernel (¼, ½, ¼)², zero outside the image, each pixel's sum through `finish(pixel, sum)`,
 /// into `out` laid out as `plane` (the padding left as it is), in the rows `y` for which
-/// `rows(y)` holds (the others left as they are); one pass over the rows, in parallel (each row computes the horizontal sums of its three rows itself, from copies
-/// with a zero at each end: a loop without a test per pixel, which the compiler vectorises).
+/// `rows(y)` holds (the others left as they are); one pass over the rows, in parallel (each
+/// row computes the horizontal sums of its three rows itself, from copies with a zero at each
+/// end: a loop without a test per pixel, which the compiler vectorises).
 fn blur_3x3_into(
     plane: &[f32],
     w: usize,
@@ -755,6 +760,28 @@ mod tests {
             rows
         };
         let bits = |rows: &[Vec<f32>; 5]| rows.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+        // The AVX2 and AVX-512 loops' rows against the portable loop's, as far as the CPU has
+        // them; how many were compared.
+        let same_from_every_loop = |args: RowArgs, plain: &[Vec<f32>; 5], what: String| {
+            let mut compared = 0;
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU has AVX2 (checked).
+                    let avx2 = rows(&|out| unsafe { atrous.row_avx2(args, out) });
+                    assert_eq!(bits(&avx2), bits(plain), "AVX2, {what}");
+                    compared += 1;
+                }
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the CPU has AVX-512 F (checked).
+                    let avx512 = rows(&|out| unsafe { atrous.row_avx512(args, out) });
+                    assert_eq!(bits(&avx512), bits(plain), "AVX-512, {what}");
+                    compared += 1;
+                }
+            }
+            let _ = (args, plain, what);
+            compared
+        };
         let mut compared = 0;
         for step in [1, 2, 4, 16] {
             for y in 0..h as usize {
@@ -771,21 +798,18 @@ mod tests {
                     let values = plain.each_ref().map(|plane| plane[pad + x].to_bits());
                     assert_eq!(values, OFF_SURFACE.map(f32::to_bits), "row {y}, step {step}, x {x}: off surfaces");
                 }
-                #[cfg(target_arch = "x86_64")]
-                {
-                    if std::arch::is_x86_feature_detected!("avx2") {
-                        // SAFETY: the CPU has AVX2 (checked).
-                        let avx2 = rows(&|out| unsafe { atrous.row_avx2(args, out) });
-                        assert_eq!(bits(&avx2), bits(&plain), "AVX2, row {y}, step {step}");
-                        compared += 1;
-                    }
-                    if std::arch::is_x86_feature_detected!("avx512f") {
-                        // SAFETY: the CPU has AVX-512 F (checked).
-                        let avx512 = rows(&|out| unsafe { atrous.row_avx512(args, out) });
-                        assert_eq!(bits(&avx512), bits(&plain), "AVX-512, row {y}, step {step}");
-                        compared += 1;
-                    }
-                }
+                compared += same_from_every_loop(args, &plain, format!("row {y}, step {step}"));
+            }
+        }
+        // With pass counts per pixel: groups that are done are skipped alike, whatever the
+        // lanes (the rows' NaN stays where a variant writes nothing).
+        let needs: Vec<u8> = (0..w * h).map(|_| 1 + (rng.next_u32() % 3) as u8).collect();
+        for pass in [1u8, 2] {
+            for y in 0..h as usize {
+                let row_needs = Some((&needs[y * w as usize..(y + 1) * w as usize], pass));
+                let args = (&planes, &signal, &blurred[..], y, 2, row_needs);
+                let plain = rows(&|out| atrous.row_portable(args, out));
+                compared += same_from_every_loop(args, &plain, format!("row {y}, pass {pass}"));
             }
         }
         #[cfg(target_arch = "x86_64")]
@@ -829,6 +853,62 @@ mod tests {
             let left = (i as u32 % W) < 16;
             assert_eq!(got[i] == one[i], left, "pixel {i}: {} against one pass's {}", got[i], one[i]);
         }
+    }
+
+    /// Pass counts that vary from pixel to pixel, on an image whose rows end in a partial
+    /// group: the same bits as passes run in full, after each of which the groups of
+    /// [`MAX_LANES`] pixels that are done get their values from before the pass back.
+    #[test]
+    fn groups_that_are_done_keep_their_values() {
+        let (w, h) = (45usize, 20usize);
+        let mut guide = wall_of(w as u32, h as u32);
+        // A strip of sky, so that some groups hold pixels off the surfaces.
+        for y in 0..h {
+            guide.footprint[y * w + 40] = 0.0;
+        }
+        let planes = GuidePlanes::new(&guide, 4);
+        let mut rng = Pcg32::new(3, 1);
+        let colour: Vec<Vec3> = (0..w * h).map(|_| Vec3::splat(0.3 + 0.4 * rng.next_f32())).collect();
+        let var: Vec<f32> = (0..w * h).map(|_| 0.05 * rng.next_f32()).collect();
+        // Mostly one or two passes, now and then four, 0 (taken as one) too.
+        let needs: Vec<u8> = (0..w * h).map(|_| [0, 1, 1, 2, 2, 2, 4][(rng.next_u32() % 7) as usize]).collect();
+        let atrous = Atrous { passes: 4, ..Atrous::default() };
+        let mut memory = FilterMemory::default();
+        let (other, _) = noisy(|_| 0.9, 0.2, 8);
+        let other: Vec<Vec3> = other[..w * h].to_vec();
+        let _ = atrous.filter_reusing(&planes, Signal::new(&planes, &other, &var), &mut memory, Some(&needs), |_| {});
+        let got =
+            atrous.filter_reusing(&planes, Signal::new(&planes, &colour, &var), &mut memory, Some(&needs), |_| {});
+        let mut signal = Signal::new(&planes, &colour, &var);
+        let mut blurred = vec![0.0; planes.stride * h];
+        for pass in 0..4u8 {
+            let mut out = Signal::empty(&planes);
+            blurred_variance(&planes, &signal, &mut blurred, |_| true);
+            atrous.pass(&planes, &signal, &blurred, 1 << pass, None, &mut out);
+            for y in 0..h {
+                for group in (0..w).step_by(MAX_LANES) {
+                    let pixels = group..(group + MAX_LANES).min(w);
+                    let most = needs[y * w..][pixels.clone()].iter().fold(1, |m, &n| m.max(n));
+                    if pass > 0 && most <= pass {
+                        for x in pixels {
+                            let i = y * planes.stride + planes.pad + x;
+                            for (to, from) in out
+                                .colour
+                                .iter_mut()
+                                .chain([&mut out.var, &mut out.lum])
+                                .zip(signal.colour.iter().chain([&signal.var, &signal.lum]))
+                            {
+                                to[i] = from[i];
+                            }
+                        }
+                    }
+                }
+            }
+            signal = out;
+        }
+        let bits = |s: &Signal| s.pixels().iter().map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+        assert_eq!(bits(&got), bits(&signal));
+        assert_ne!(bits(&got), bits(&atrous.filter(&planes, Signal::new(&planes, &colour, &var), |_| {})));
     }
 
     #[test]

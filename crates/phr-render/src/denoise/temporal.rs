@@ -78,8 +78,9 @@ pub struct Temporal {
     memory: Memory,
 }
 
-/// The planes a frame's filtering writes, kept for the next frame's: at 256² (three passes)
-/// they are 6 MB, which would otherwise be allocated and cleared again every frame.
+/// The planes a frame's filtering writes, and the passes each pixel needs, kept for the next
+/// frame's: at 256² (three passes) they are 6 MB, which would otherwise be allocated and
+/// cleared again every frame.
 #[derive(Default)]
 struct Memory {
     planes: Option<GuidePlanes>,
@@ -211,7 +212,14 @@ impl Temporal {
                     let blended = self.blend(colour[i] / albedo(i), guide, history.as_ref(), i);
                     (*blended_illumination, *moments, *length) =
                         (blended.illumination, blended.moments, blended.length);
-                    *needs = if blended.length < ALL_PASSES_UNTIL { all_passes } else { converged_passes };
+                    // (Pixels off the surfaces come out of every pass as they went in.)
+                    *needs = if guide.footprint[i] <= 0.0 {
+                        0
+                    } else if blended.length < ALL_PASSES_UNTIL {
+                        all_passes
+                    } else {
+                        converged_passes
+                    };
                 }
             },
         );
