@@ -59,18 +59,16 @@ pub fn best_split(cut: &mut [CutNode], weight: CutWeight, scratch: &mut SplitScr
     scratch.weights.clear();
     scratch.weights.extend(cut.iter().map(|n| weight.of(n.prims)));
     let total_weight: f32 = scratch.weights.iter().sum();
-    let (best_axis, best_of) = if m >= BINNED_AXIS_FROM {
+    let best = if m >= BINNED_AXIS_FROM {
         // A large cut: the axis from a binned estimate, then the full sweep along it alone.
         let axis = binned_axis(&scratch.boxes, &scratch.weights);
         let best = sweep_one_axis(axis, scratch, total_weight);
-        let mut best_of = [(f32::INFINITY, m / 2, 0.0f32); 3];
-        best_of[axis] = best;
         // (The three-axis sweep's rule: any cost below infinity.)
-        ((best.0 < f32::INFINITY).then_some(axis), best_of)
+        (best.0 < f32::INFINITY).then_some((axis, best))
     } else {
         sweep_three_axes(scratch, total_weight)
     };
-    let Some(axis) = best_axis else {
+    let Some((axis, (_, left_len, left_area))) = best else {
         // No finite cost: the cut as it came, halved.
         let left_len = m / 2;
         return CutSplit { left_len, area_count: side_cost(&cut[..left_len]) + side_cost(&cut[left_len..]) };
@@ -82,7 +80,6 @@ pub fn best_split(cut: &mut [CutNode], weight: CutWeight, scratch: &mut SplitScr
     // same bits (for finite, non-empty boxes: with a NaN, a union depends on its order, and
     // the right side's sweep runs backwards; an inverted box has no area in `side_cost`).
     // `A · n` counts primitives whatever the sweep's weight.
-    let (_, left_len, left_area) = best_of[axis];
     let left_prims: u32 = cut[..left_len].iter().map(|n| n.prims).sum();
     let right_prims: u32 = cut[left_len..].iter().map(|n| n.prims).sum();
     let area_count = left_area * left_prims as f32 + scratch.right_area[left_len][axis] * right_prims as f32;
@@ -101,10 +98,10 @@ pub const BINNED_AXIS_FROM: usize = 32;
 /// Sorts the keys of `scratch.boxes` along each axis into `scratch.orders` and sweeps the
 /// three axes side by side (each sweep is a chain of dependent min/max steps, and three
 /// independent chains keep the core busy where one waits on the last step's latency).
-/// Returns the cheapest axis (`None`: no finite cost) and each axis's first cheapest
-/// position as `(cost, left length, left area)`; `scratch.right_area[k][axis]` holds the area
-/// right of position `k`.
-fn sweep_three_axes(scratch: &mut SplitScratch, total_weight: f32) -> (Option<usize>, [(f32, usize, f32); 3]) {
+/// Returns the cheapest axis with its first cheapest position as `(cost, left length, left
+/// area)` (`None`: no finite cost); `scratch.right_area[k][axis]` holds the area right of
+/// position `k`.
+fn sweep_three_axes(scratch: &mut SplitScratch, total_weight: f32) -> Option<(usize, (f32, usize, f32))> {
     let m = scratch.boxes.len();
     for (axis, order) in scratch.orders.iter_mut().enumerate() {
         fill_keys(&scratch.boxes, axis, order);
@@ -149,7 +146,7 @@ fn sweep_three_axes(scratch: &mut SplitScratch, total_weight: f32) -> (Option<us
             (best_cost, best_axis) = (cost, Some(axis));
         }
     }
-    (best_axis, best_of)
+    best_axis.map(|axis| (axis, best_of[axis]))
 }
 
 /// [`sweep_three_axes`] along `axis` alone: its first cheapest position.
@@ -222,14 +219,7 @@ fn binned_axis(boxes: &[(Vec3A, Vec3A)], weights: &[f32]) -> usize {
     }
     // (No position with nodes on both sides, as when the boxes are not finite: the axis of
     // widest spread.)
-    let widest = if extent.x >= extent.y && extent.x >= extent.z {
-        0
-    } else if extent.y >= extent.z {
-        1
-    } else {
-        2
-    };
-    let mut best = (f32::INFINITY, widest);
+    let mut best = (f32::INFINITY, Aabb::new(low.into(), high.into()).longest_axis());
     for axis in (0..3).filter(|&a| extent[a] > 0.0) {
         // Per position, the right side's `A · n` and node count.
         let mut right = [(0.0f32, 0u32); AXIS_BINS];

@@ -256,18 +256,21 @@ impl Signal {
     }
 }
 
-/// Memory an [`Atrous::filter_reusing`] keeps for the next: the planes a pass writes into, and
-/// the blurred variance's.
+/// Memory an [`Atrous::filter_reusing`] keeps for the next: the planes a pass writes into, the
+/// blurred variance's, and the passes of the groups of pixels.
 #[derive(Default)]
 pub(crate) struct FilterMemory {
     spare: Option<Signal>,
     blurred: Vec<f32>,
+    /// Per row, the most passes a pixel of each group of [`MAX_LANES`] needs (at least 1).
+    groups: Vec<u8>,
     /// The width, height and padding `blurred` was made for.
     blurred_layout: (usize, usize, usize),
 }
 
 /// What [`Atrous::row`] reads: the guide, the pass's signal and blurred variance, the row, the
-/// step, and where given the passes each pixel of the row needs with the pass's number.
+/// step, and where given the passes each group of [`MAX_LANES`] pixels of the row needs with
+/// the pass's number.
 type RowArgs<'a> = (&'a GuidePlanes, &'a Signal, &'a [f32], usize, usize, Option<(&'a [u8], u8)>);
 
 /// Where [`Atrous::row`] writes row `y` of the pass's output: its padded rows (`stride`
@@ -323,7 +326,19 @@ impl Atrous {
             // Its padding must be 0 (what `blurred_variance` leaves there).
             (memory.blurred, memory.blurred_layout) = (vec![0.0; guide.stride * guide.height], layout);
         }
-        let blurred = &mut memory.blurred;
+        let (blurred, groups) = (&mut memory.blurred, &mut memory.groups);
+        // The passes each group needs, decided once: the same groups for every lane width, so
+        // that every compiled loop gives the same image.
+        let row_groups = guide.width.div_ceil(MAX_LANES);
+        let needs = needs.map(|needs| {
+            groups.clear();
+            groups.extend(
+                needs
+                    .chunks(guide.width.max(1))
+                    .flat_map(|row| row.chunks(MAX_LANES).map(|group| group.iter().fold(1, |most, &n| most.max(n)))),
+            );
+            &groups[..]
+        });
         for pass in 0..self.passes {
             // Steps this wide are wider than any image: the passes left would keep only their
             // centre taps.
@@ -331,8 +346,9 @@ impl Atrous {
             let mut out = spare.take().unwrap_or_else(|| Signal::empty(guide));
             let needs = needs.filter(|_| pass > 0).map(|n| (n, pass.min(u8::MAX as u32) as u8));
             // Only the rows the pass filters read their blurred variance.
-            let w = guide.width;
-            let filtered = |y: usize| needs.is_none_or(|(n, pass)| n[y * w..(y + 1) * w].iter().any(|&k| k > pass));
+            let filtered = |y: usize| {
+                needs.is_none_or(|(n, pass)| n[y * row_groups..(y + 1) * row_groups].iter().any(|&k| k > pass))
+            };
             blurred_variance(guide, &signal, blurred, filtered);
             self.pass(guide, &signal, blurred, step, needs, &mut out);
             spare = Some(std::mem::replace(&mut signal, out));
@@ -346,7 +362,7 @@ impl Atrous {
 
     /// One pass with taps `step` pixels apart, from `signal` (whose variance is `blurred`
     /// after [`blurred_variance`]) into `out` (laid out for `guide` as `signal` is). Every
-    /// pixel is written, but those of the groups that `needs` says are done (see
+    /// pixel is written, but those of the groups that `groups` says are done (see
     /// [`Atrous::filter_reusing`]); the padding keeps its values (the lanes of a row's last
     /// chunk that fall in it write the same values again).
     fn pass(
@@ -355,7 +371,7 @@ impl Atrous {
         signal: &Signal,
         blurred: &[f32],
         step: usize,
-        needs: Option<(&[u8], u8)>,
+        groups: Option<(&[u8], u8)>,
         out: &mut Signal,
     ) {
         // Each row of `out` is one row of the image (the rows below take it so).
@@ -375,7 +391,8 @@ impl Atrous {
             out.lum.par_chunks_mut(stride),
         );
         rows.into_par_iter().enumerate().for_each(|(y, (r, g, b, var, lum))| {
-            let row_needs = needs.map(|(n, pass)| (&n[y * guide.width..(y + 1) * guide.width], pass));
+            let row_groups = guide.width.div_ceil(MAX_LANES);
+            let row_needs = groups.map(|(n, pass)| (&n[y * row_groups..(y + 1) * row_groups], pass));
             let args = (guide, signal, blurred, y, step, row_needs);
             let row = [r, g, b, var, lum];
             if widest {
@@ -443,7 +460,7 @@ impl Atrous {
         assert!(guide.normal.iter().chain(&guide.position).all(|p| p.len() == len));
         assert!(blurred.len() == len && guide.footprint_padded.len() == len);
         assert!(out.iter().all(|row| row.len() == stride));
-        assert!(needs.is_none_or(|(n, _)| n.len() == w));
+        assert!(needs.is_none_or(|(n, _)| n.len() == w.div_ceil(MAX_LANES)));
         // The taps whose row lies in the image: kernel weight, 1 / offset length in steps
         // (the plane distance is per step of offset), offset in the padded planes.
         let mut tap_list = [(0.0f32, 0.0f32, 0isize); 25];
@@ -483,22 +500,10 @@ impl Atrous {
             for x0 in (0..w).step_by(V::N) {
                 let c = y * stride + pad + x0;
                 let o = pad + x0;
-                let f = at(&guide.footprint_padded, c);
-                if !V::any(f.gt(zero)) {
-                    // No surface in the chunk (the sky, a light): the values off surfaces, as
-                    // the taps would give them, without the taps.
-                    for plane in [&mut *out_r, &mut *out_g, &mut *out_b, &mut *out_var] {
-                        zero.store(plane.as_mut_ptr().add(o));
-                    }
-                    infinity.store(out_lum.as_mut_ptr().add(o));
-                    continue;
-                }
                 if let Some((needs, pass)) = needs {
-                    // The most passes a pixel of the chunk's group of `MAX_LANES` needs (the
-                    // first always runs): the same groups for every lane width, so that every
-                    // compiled loop gives the same image.
-                    let group = x0 / MAX_LANES * MAX_LANES;
-                    let most = needs[group..(group + MAX_LANES).min(w)].iter().fold(1, |m, &n| m.max(n));
+                    // The most passes a pixel of the chunk's group needs (decided first, so that
+                    // every lane width treats a group alike).
+                    let most = needs[x0 / MAX_LANES];
                     if most < pass {
                         // Done two passes ago or more: the output's memory, which held the
                         // output of the pass before last, holds the chunk's values since.
@@ -518,6 +523,16 @@ impl Atrous {
                         }
                         continue;
                     }
+                }
+                let f = at(&guide.footprint_padded, c);
+                if !V::any(f.gt(zero)) {
+                    // No surface in the chunk (the sky, a light): the values off surfaces, as
+                    // the taps would give them, without the taps.
+                    for plane in [&mut *out_r, &mut *out_g, &mut *out_b, &mut *out_var] {
+                        zero.store(plane.as_mut_ptr().add(o));
+                    }
+                    infinity.store(out_lum.as_mut_ptr().add(o));
+                    continue;
                 }
                 let (pnx, pny, pnz) = (at(nx, c), at(ny, c), at(nz, c));
                 let (ppx, ppy, ppz) = (at(px, c), at(py, c), at(pz, c));
@@ -801,12 +816,13 @@ mod tests {
                 compared += same_from_every_loop(args, &plain, format!("row {y}, step {step}"));
             }
         }
-        // With pass counts per pixel: groups that are done are skipped alike, whatever the
+        // With pass counts per group: groups that are done are skipped alike, whatever the
         // lanes (the rows' NaN stays where a variant writes nothing).
-        let needs: Vec<u8> = (0..w * h).map(|_| 1 + (rng.next_u32() % 3) as u8).collect();
+        let row_groups = (w as usize).div_ceil(MAX_LANES);
+        let needs: Vec<u8> = (0..row_groups * h as usize).map(|_| 1 + (rng.next_u32() % 3) as u8).collect();
         for pass in [1u8, 2] {
             for y in 0..h as usize {
-                let row_needs = Some((&needs[y * w as usize..(y + 1) * w as usize], pass));
+                let row_needs = Some((&needs[y * row_groups..(y + 1) * row_groups], pass));
                 let args = (&planes, &signal, &blurred[..], y, 2, row_needs);
                 let plain = rows(&|out| atrous.row_portable(args, out));
                 compared += same_from_every_loop(args, &plain, format!("row {y}, pass {pass}"));
