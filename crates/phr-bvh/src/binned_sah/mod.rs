@@ -97,15 +97,16 @@ impl Bounds {
         self.c_hi = self.c_hi.max(c);
     }
 
-    /// Adds `r` if `yes`, without a branch.
+    /// Adds `r` if `yes`, without a branch. (Each bound's `min` or `max`, then a select of it
+    /// or the old bound: one masked instruction each where AVX-512 is compiled in.)
     #[inline(always)]
     fn add_if(&mut self, r: &PrimRef, yes: bool) {
         let mask = glam::BVec4A::splat(yes);
         let c = r.centre2();
-        self.lo = self.lo.min(Vec4::select(mask, r.lo, Vec4::INFINITY));
-        self.hi = self.hi.max(Vec4::select(mask, r.hi, Vec4::NEG_INFINITY));
-        self.c_lo = self.c_lo.min(Vec4::select(mask, c, Vec4::INFINITY));
-        self.c_hi = self.c_hi.max(Vec4::select(mask, c, Vec4::NEG_INFINITY));
+        self.lo = Vec4::select(mask, self.lo.min(r.lo), self.lo);
+        self.hi = Vec4::select(mask, self.hi.max(r.hi), self.hi);
+        self.c_lo = Vec4::select(mask, self.c_lo.min(c), self.c_lo);
+        self.c_hi = Vec4::select(mask, self.c_hi.max(c), self.c_hi);
     }
 
     fn merge(mut self, o: Bounds) -> Bounds {
@@ -252,6 +253,9 @@ struct Ctx {
     /// Whether [`Ctx::decide`] runs its AVX2 compilation (the same arithmetic, so the same
     /// tree; the test below builds with both).
     avx2: bool,
+    /// Whether it runs its AVX-512 compilation instead (masked `min` and `max` in the
+    /// partition; the same tree again).
+    avx512: bool,
 }
 
 impl Ctx {
@@ -260,6 +264,7 @@ impl Ctx {
             bins: options.bins.clamp(2, MAX_BINS),
             leaf: options.leaf,
             avx2: crate::wide::SimdLevel::detect() == crate::wide::SimdLevel::Avx2,
+            avx512: has_avx512(),
         }
     }
 }
@@ -275,6 +280,14 @@ pub fn build_binned_sah(boxes: &[Aabb], options: &BinnedSahOptions) -> Bvh {
     assemble(ctx.build(&mut refs, bounds, 0))
 }
 
+/// Whether the CPU has AVX-512 F and VL.
+fn has_avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    return std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("avx512vl");
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
 /// A node's decision: a leaf, or the number of references moved to the front (left) with
 /// the two sides' bounds.
 enum Decision {
@@ -287,6 +300,11 @@ impl Ctx {
     /// CPU has it (blends instead of and/or masks in the partition, three-operand forms).
     fn decide(&self, refs: &mut [PrimRef], bounds: &Bounds, depth: u32, bins: &mut Bins) -> Decision {
         #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: the CPU has AVX-512 F and VL (checked by `Ctx::new`).
+            return unsafe { self.decide_avx512(refs, bounds, depth, bins) };
+        }
+        #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU has AVX2 (checked by `Ctx::new`).
             return unsafe { self.decide_avx2(refs, bounds, depth, bins) };
@@ -297,6 +315,12 @@ impl Ctx {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn decide_avx2(&self, refs: &mut [PrimRef], bounds: &Bounds, depth: u32, bins: &mut Bins) -> Decision {
+        self.decide_inline(refs, bounds, depth, bins)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,avx512f,avx512vl")]
+    fn decide_avx512(&self, refs: &mut [PrimRef], bounds: &Bounds, depth: u32, bins: &mut Bins) -> Decision {
         self.decide_inline(refs, bounds, depth, bins)
     }
 
@@ -411,8 +435,10 @@ fn partition(refs: &mut [PrimRef], left: impl Fn(&PrimRef) -> bool) -> Decision 
     for i in 0..refs.len() {
         let r = refs[i];
         let is_left = left(&r);
-        refs[i] = refs[k];
-        refs[k] = r;
+        // A swap of whole references: the next step often reads back `refs[k]`, and a
+        // 32-byte load of what two 16-byte stores wrote (`refs[k] = r` from the two halves'
+        // registers) cannot be forwarded from the store buffer.
+        refs.swap(i, k);
         k += is_left as usize;
         lb.add_if(&r, is_left);
         rb.add_if(&r, !is_left);
@@ -424,10 +450,10 @@ fn partition(refs: &mut [PrimRef], left: impl Fn(&PrimRef) -> bool) -> Decision 
 mod tests {
     use super::*;
 
-    /// The AVX2 compilation of the builder's hot loop makes the portable one's tree, node for
-    /// node (on a CPU without AVX2 both builds take the portable path).
+    /// The AVX2 and AVX-512 compilations of the builder's hot loop make the portable one's
+    /// tree, node for node (on a CPU without them those builds take the portable path).
     #[test]
-    fn avx2_and_portable_builds_make_the_same_tree() {
+    fn simd_and_portable_builds_make_the_same_tree() {
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         let mut next = || {
             state ^= state << 13;
@@ -442,17 +468,20 @@ mod tests {
                 Aabb::new(c - e, c + e)
             })
             .collect();
-        let build = |avx2: bool| {
+        let build = |avx2: bool, avx512: bool| {
             let mut refs: Vec<PrimRef> = boxes.iter().enumerate().map(|(i, b)| PrimRef::new(i, b)).collect();
             let ctx = Ctx {
                 avx2: avx2 && Ctx::new(&BinnedSahOptions::default()).avx2,
+                avx512: avx512 && has_avx512(),
                 ..Ctx::new(&BinnedSahOptions::default())
             };
             let bounds = Bounds::of(&refs);
             assemble(ctx.build(&mut refs, bounds, 0))
         };
-        let (portable, fast) = (build(false), build(true));
-        assert_eq!(portable.nodes, fast.nodes);
-        assert_eq!(portable.prim_indices, fast.prim_indices);
+        let portable = build(false, false);
+        for fast in [build(true, false), build(false, true)] {
+            assert_eq!(portable.nodes, fast.nodes);
+            assert_eq!(portable.prim_indices, fast.prim_indices);
+        }
     }
 }
