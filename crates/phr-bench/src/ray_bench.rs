@@ -10,8 +10,9 @@
 //!   and `shadow` (from the diffuse origins to points of the box, traced as any-hit queries:
 //!   ours `any_triangle`, Embree `rtcOccluded1`);
 //! - Mrays/s, best of `repeats`, on rayon pools of each thread count, for `binary` (the
-//!   scalar reference traversal), `wide4` and `wide8` (best SIMD level of this CPU), and
-//!   Embree on the same rays;
+//!   scalar reference traversal), `wide4` and `wide8` (best SIMD level of this CPU), wide-8
+//!   with 2 or 4 rays interleaved and in packets of 16 ([`VARIANTS`]), and Embree on the same
+//!   rays;
 //! - where the time goes: nodes, leaves and triangles per ray, and the share of a
 //!   traversal-only pass (wide-8 with `tmax` preset to the closest hit, leaves not
 //!   intersected).
@@ -41,9 +42,10 @@ use std::time::Instant;
 pub const KINDS: [&str; 4] = ["primary", "incoherent", "diffuse", "shadow"];
 /// The kind traced as any-hit (occlusion) queries.
 pub const SHADOW: &str = "shadow";
-/// Our traversals: the binary reference, wide-4 and wide-8 one ray at a time, and wide-8 with
-/// 2 and 4 rays interleaved (in chunks of 256 rays, as the renderer's tiles).
-pub const VARIANTS: [&str; 5] = ["binary", "wide4", "wide8", "wide8-x2", "wide8-x4"];
+/// Our traversals: the binary reference, wide-4 and wide-8 one ray at a time, wide-8 with
+/// 2 and 4 rays interleaved (in chunks of 256 rays, as the renderer's tiles), and wide-8 in
+/// packets of 16 rays (closest hits only, where the CPU has AVX-512).
+pub const VARIANTS: [&str; 6] = ["binary", "wide4", "wide8", "wide8-x2", "wide8-x4", "wide8-packets"];
 
 /// What to measure.
 #[derive(Clone, Debug)]
@@ -75,7 +77,7 @@ pub struct Row {
     pub kind: String,
     pub rays: usize,
     pub hit_rate: f64,
-    /// (variant, threads) → Mrays/s; variants binary, wide4, wide8, embree, embree-robust.
+    /// (variant, threads) → Mrays/s; the variants of [`VARIANTS`], embree, embree-robust.
     pub mrays: BTreeMap<(String, usize), f64>,
     pub binary_nodes: f64,
     pub binary_tris: f64,
@@ -230,11 +232,17 @@ fn check_hits(
         }
         hits.into_iter().map(|h| h.map(|h| (h.prim, h.hit.t))).collect()
     };
-    let variants: [(&str, Vec<Hit>); 4] = [
+    let packets = {
+        let mut hits = vec![None; rays.len()];
+        t.wide8.closest_triangles_packets(&t.packed8, rays, &mut hits);
+        hits.into_iter().map(|h| h.map(|h| (h.prim, h.hit.t))).collect()
+    };
+    let variants: [(&str, Vec<Hit>); 5] = [
         ("wide4", rays.par_iter().map(|r| wide_hit(&t.wide4, &t.packed4, r)).collect()),
         ("wide8", rays.par_iter().map(|r| wide_hit(&t.wide8, &t.packed8, r)).collect()),
         ("wide8-x2", interleaved(2)),
         ("wide8-x4", interleaved(4)),
+        ("wide8-packets", packets),
     ];
     for (variant, got) in variants {
         for i in (0..got.len()).filter(|&i| got[i] != reference[i]) {
@@ -303,7 +311,9 @@ fn measure_kind(
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
         progress.status(format!("{name}: {kind} rays, {threads} thread(s)"));
         for (i, v) in VARIANTS.iter().enumerate() {
-            let m = pool.install(|| variant_throughput(i, kind == SHADOW, rays, trees, options.repeats));
+            let Some(m) = pool.install(|| variant_throughput(i, kind == SHADOW, rays, trees, options.repeats)) else {
+                continue;
+            };
             row.mrays.insert((v.to_string(), threads), m);
         }
     }
@@ -312,20 +322,24 @@ fn measure_kind(
     Ok(row)
 }
 
-/// Mrays/s of `VARIANTS[variant]`, as any-hit queries for shadow rays.
-fn variant_throughput(variant: usize, any: bool, rays: &[Ray], t: &Trees, repeats: usize) -> f64 {
-    match (variant, any) {
+/// Mrays/s of `VARIANTS[variant]`, as any-hit queries for shadow rays (`None`: packets on
+/// shadow rays, which have no any-hit query, or on a CPU without AVX-512).
+fn variant_throughput(variant: usize, any: bool, rays: &[Ray], t: &Trees, repeats: usize) -> Option<f64> {
+    Some(match (variant, any) {
         (0, true) => throughput(rays, repeats, |ray| binary_occluded(&t.bvh, &t.tris, ray)),
         (1, true) => throughput(rays, repeats, |ray| t.wide4.any_triangle(&t.packed4, ray)),
         (2, true) => throughput(rays, repeats, |ray| t.wide8.any_triangle(&t.packed8, ray)),
         (3, true) => interleaved_any::<2>(rays, repeats, t),
-        (_, true) => interleaved_any::<4>(rays, repeats, t),
+        (4, true) => interleaved_any::<4>(rays, repeats, t),
+        (_, true) => return None,
         (0, false) => throughput(rays, repeats, |ray| binary_hit(&t.bvh, &t.tris, ray).is_some()),
         (1, false) => throughput(rays, repeats, |ray| wide_hit(&t.wide4, &t.packed4, ray).is_some()),
         (2, false) => throughput(rays, repeats, |ray| wide_hit(&t.wide8, &t.packed8, ray).is_some()),
         (3, false) => interleaved::<2>(rays, repeats, t),
-        _ => interleaved::<4>(rays, repeats, t),
-    }
+        (4, false) => interleaved::<4>(rays, repeats, t),
+        (_, false) if phr_bvh::wide::packet::available() => packets(rays, repeats, t),
+        _ => return None,
+    })
 }
 
 /// Mrays/s of the wide-8 closest-hit traversal with `M` rays interleaved.
@@ -333,6 +347,15 @@ fn interleaved<const M: usize>(rays: &[Ray], repeats: usize, t: &Trees) -> f64 {
     crate::throughput::throughput_batched(rays, repeats, |chunk| {
         let mut hits = vec![None; chunk.len()];
         t.wide8.closest_triangles_interleaved::<M>(&t.packed8, chunk, &mut hits);
+        hits.iter().filter(|h| h.is_some()).count()
+    })
+}
+
+/// Mrays/s of the wide-8 closest-hit traversal in packets of 16 rays.
+fn packets(rays: &[Ray], repeats: usize, t: &Trees) -> f64 {
+    crate::throughput::throughput_batched(rays, repeats, |chunk| {
+        let mut hits = vec![None; chunk.len()];
+        t.wide8.closest_triangles_packets(&t.packed8, chunk, &mut hits);
         hits.iter().filter(|h| h.is_some()).count()
     })
 }
@@ -383,10 +406,8 @@ fn work_per_ray(row: &mut Row, rays: &[Ray], reference: &[Hit], t: &Trees, repea
         });
         std::hint::black_box(leaves) > 0
     });
-    let full = match row.get("wide8", 1) {
-        Some(m) => m,
-        None => variant_throughput(2, row.kind == SHADOW, rays, t, repeats),
-    };
+    let full = row.get("wide8", 1).or_else(|| variant_throughput(2, row.kind == SHADOW, rays, t, repeats));
+    let full = full.expect("wide8 runs every query");
     row.traversal_share = full / traversal;
 }
 

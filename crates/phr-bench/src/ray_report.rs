@@ -23,10 +23,12 @@ pub fn markdown(infos: &[SceneInfo], rows: &[Row], options: &RayBenchOptions) ->
         "# phr bench-rays\n\nCommand: `{}` (release build).\n\nClosest-hit Mrays/s (best of {}), builder {}, primary rays {}², {} incoherent rays. \
          `binary`: scalar binary traversal (the reference); `wide4`/`wide8`: wide BVH, SIMD level `{}`, \
          one ray at a time; `wide8 ×2`/`×4`: 2 or 4 rays interleaved (each steps one node or leaf in turn), \
-         chunks of 256 rays, as the renderer traces a tile; \
+         chunks of 256 rays, as the renderer traces a tile; `wide8 packets`: packets of 16 consecutive rays \
+         (primary rays: 16 × 1 strips of the image) through AVX-512 registers, closest hits only, lanes whose rays \
+         part ways idling (`-`: shadow rays, or no AVX-512); \
          Embree: embreex `rtcIntersect1` loop, T threads = T processes, default scene flags and \
-         `robust=True` (conservative traversal, like ours). Ratios: best of wide4/wide8, and best of \
-         ×2/×4, over each Embree. \
+         `robust=True` (conservative traversal, like ours). Ratios: best of wide4/wide8 (ours), and \
+         best of ×2/×4/packets (batched), over each Embree. \
          `shadow`: rays from the diffuse rays' origins to uniform points of the scene box, interval (0, 1 − 10⁻⁴) \
          of the unnormalised direction, traced as any-hit queries (ours `any_triangle`, Embree \
          `rtcOccluded1`); their work-per-ray row counts the closest-hit query on the same rays.\n\n",
@@ -53,18 +55,19 @@ pub fn markdown(infos: &[SceneInfo], rows: &[Row], options: &RayBenchOptions) ->
     }
     for &t in threads {
         s += &format!(
-            "\n## {t} thread(s)\n\n| scene | rays | binary | wide4 | wide8 | wide8 ×2 | wide8 ×4 | Embree | Embree robust | ours/Embree | ours/Embree robust | ×2 or ×4/Embree | ×2 or ×4/Embree robust | wide8/binary |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n"
+            "\n## {t} thread(s)\n\n| scene | rays | binary | wide4 | wide8 | wide8 ×2 | wide8 ×4 | wide8 packets | Embree | Embree robust | ours/Embree | ours/Embree robust | batched/Embree | batched/Embree robust | wide8/binary |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n"
         );
         for r in rows {
             let best = r.get("wide4", t).unwrap_or(0.0).max(r.get("wide8", t).unwrap_or(0.0));
             let ratio = r.get("embree", t).map(|e| best / e);
             let ratio_robust = r.get("embree-robust", t).map(|e| best / e);
-            let interleaved = r.get("wide8-x2", t).into_iter().chain(r.get("wide8-x4", t)).reduce(f64::max);
+            let interleaved =
+                ["wide8-x2", "wide8-x4", "wide8-packets"].iter().filter_map(|v| r.get(v, t)).reduce(f64::max);
             let interleaved_ratio = interleaved.zip(r.get("embree", t)).map(|(i, e)| i / e);
             let interleaved_robust = interleaved.zip(r.get("embree-robust", t)).map(|(i, e)| i / e);
             let speedup = r.get("binary", t).map(|b| r.get("wide8", t).unwrap_or(0.0) / b);
-            let [b, w4, w8, x2, x4, e, er] =
-                ["binary", "wide4", "wide8", "wide8-x2", "wide8-x4", "embree", "embree-robust"]
+            let [b, w4, w8, x2, x4, p, e, er] =
+                ["binary", "wide4", "wide8", "wide8-x2", "wide8-x4", "wide8-packets", "embree", "embree-robust"]
                     .map(|v| fmt(r.get(v, t)));
             s += &table_row([
                 r.scene.clone(),
@@ -74,6 +77,7 @@ pub fn markdown(infos: &[SceneInfo], rows: &[Row], options: &RayBenchOptions) ->
                 w8,
                 x2,
                 x4,
+                p,
                 e,
                 er,
                 fmt(ratio),

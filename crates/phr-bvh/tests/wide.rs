@@ -9,6 +9,7 @@ use common::*;
 use glam::Vec3;
 use phr_bvh::node::Node;
 use phr_bvh::triangle::intersect_triangle;
+use phr_bvh::wide::triangles::SlotHit;
 use phr_bvh::wide::{CollapseOptions, Lanes, Width};
 use phr_bvh::{refit, validate, Builder, Bvh, PackedTriangles, Ray, SimdLevel, WideBvh};
 
@@ -150,6 +151,7 @@ fn check_interleaved<const N: usize>(
     wide.closest_triangles_interleaved::<4>(packed, few, &mut few_hits);
     assert_eq!(few_hits, single[..few.len()], "{what}: fewer rays than slots");
     wide.closest_triangles_interleaved::<4>(packed, &[], &mut []);
+    check_packets(wide, packed, rays, &single, what);
     // Any-hit queries likewise.
     let single: Vec<bool> = rays.iter().map(|r| wide.any_triangle(packed, r)).collect();
     let mut occluded = vec![false; rays.len()];
@@ -159,6 +161,64 @@ fn check_interleaved<const N: usize>(
     assert_eq!(occluded, single, "{what}: any hit, 2 rays at once");
     wide.any_triangles_interleaved::<4>(packed, rays, &mut occluded);
     assert_eq!(occluded, single, "{what}: any hit, 4 rays at once");
+}
+
+/// The packet traversal of an 8-wide tree (`single`: the single-ray answers of `rays`)
+/// gives every ray the single-ray answer, in full packets and in a short last one: the same
+/// primitive, `t`, `u` and `v`, found in a slot that holds it (with spatial splits a
+/// primitive has several, and which one a ray meets first depends on the visit order).
+fn check_packets<const N: usize>(
+    wide: &WideBvh<N>,
+    packed: &PackedTriangles,
+    rays: &[Ray],
+    single: &[Option<SlotHit>],
+    what: &str,
+) {
+    let Some(wide) = (wide as &dyn std::any::Any).downcast_ref::<WideBvh<8>>() else { return };
+    let answers = |hits: &[Option<SlotHit>]| {
+        for h in hits.iter().flatten() {
+            assert_eq!(wide.prim_indices[h.slot as usize], h.prim, "{what}: the slot holds the primitive");
+        }
+        hits.iter().map(|h| h.map(|h| (h.prim, [h.hit.t, h.hit.u, h.hit.v].map(f32::to_bits)))).collect::<Vec<_>>()
+    };
+    let mut hits = vec![None; rays.len()];
+    wide.closest_triangles_packets(packed, rays, &mut hits);
+    assert_eq!(answers(&hits), answers(single), "{what}: packets");
+    let odd = &rays[..rays.len().min(21)];
+    let mut odd_hits = vec![None; odd.len()];
+    wide.closest_triangles_packets(packed, odd, &mut odd_hits);
+    assert_eq!(answers(&odd_hits), answers(&single[..odd.len()]), "{what}: packets, a short last one");
+}
+
+/// Camera rays: from a point before the box through a grid over it, row by row (the
+/// coherent rays packets are made for).
+fn camera_rays(bounds: phr_bvh::Aabb, side: usize) -> Vec<Ray> {
+    let (c, e) = (bounds.center(), bounds.extent());
+    let eye = c - Vec3::new(0.3, 0.2, 2.0) * e.max_element();
+    (0..side * side)
+        .map(|i| {
+            let (x, y) = ((i % side) as f32 / side as f32, (i / side) as f32 / side as f32);
+            let target = bounds.min + e * Vec3::new(x, y, 0.5);
+            Ray::new(eye, (target - eye).normalize())
+        })
+        .collect()
+}
+
+#[test]
+fn packets_match_single_rays_on_camera_rays() {
+    for (name, tris) in adversarial_meshes() {
+        let boxes = triangle_boxes(&tris);
+        for builder in ["phr-hq", "binned-sah", "sbvh"] {
+            let builder: Builder = builder.parse().unwrap();
+            let bvh = builder.build_with_triangles(&boxes, &tris);
+            let wide = WideBvh::<8>::from_bvh(&bvh);
+            let packed = PackedTriangles::new(&wide.prim_indices, &tris);
+            let rays = camera_rays(bvh.root_bounds(), 24);
+            let single: Vec<_> = rays.iter().map(|r| wide.closest_triangle_slot(&packed, r)).collect();
+            assert!(single.iter().any(Option::is_some), "{name}, {builder}: some camera ray hits");
+            check_packets(&wide, &packed, &rays, &single, &format!("{name}, {builder}"));
+        }
+    }
 }
 
 #[test]
@@ -250,12 +310,24 @@ fn empty_and_single_triangle_trees() {
     assert!(empty.validate(&[]).is_ok());
     let ray = Ray::new(Vec3::ZERO, Vec3::Z);
     assert!(!empty.closest_hit(&mut ray.clone(), |_, _| true));
+    let mut hits =
+        vec![Some(SlotHit { slot: 0, prim: 0, hit: phr_bvh::triangle::TriangleHit { t: 1.0, u: 0.0, v: 0.0 } })];
+    empty.closest_triangles_packets(&PackedTriangles::default(), &[ray], &mut hits);
+    assert_eq!(hits, [None], "packets through an empty tree");
     let tris = vec![[Vec3::new(-1.0, -1.0, 1.0), Vec3::new(1.0, -1.0, 1.0), Vec3::new(0.0, 1.0, 1.0)]];
     let bvh = Builder::default().build(&triangle_boxes(&tris));
     let wide = WideBvh::<4>::from_bvh(&bvh);
     wide.validate(&triangle_boxes(&tris)).unwrap();
     let packed = PackedTriangles::new(&wide.prim_indices, &tris);
     assert_eq!(wide.closest_triangle(&packed, &ray).map(|(p, h)| (p, h.t)), Some((0, 1.0)));
+    // Packets through a tree whose root holds the one leaf, and an interval that ends at 0.
+    let wide = WideBvh::<8>::from_bvh(&bvh);
+    let packed = PackedTriangles::new(&wide.prim_indices, &tris);
+    let rays = [ray, Ray::with_interval(Vec3::ZERO, Vec3::Z, 0.0, 0.0), Ray::new(Vec3::ZERO, -Vec3::Z)];
+    let mut hits = vec![None; rays.len()];
+    wide.closest_triangles_packets(&packed, &rays, &mut hits);
+    let answers: Vec<_> = hits.iter().map(|h| h.map(|h| (h.prim, h.hit.t))).collect();
+    assert_eq!(answers, [Some((0, 1.0)), None, None], "packets through a one-leaf tree");
 }
 
 #[test]
@@ -433,6 +505,8 @@ fn non_finite_rays_hit_nothing_and_stay_memory_safe() {
                     level.name()
                 );
             }
+            let single: Vec<_> = mixed.iter().map(|r| wide.closest_triangle_slot(&packed, r)).collect();
+            check_packets(&wide, &packed, &mixed, &single, &format!("wide-{N} {}, bad rays", level.name()));
             assert!(hits.iter().step_by(2).any(Option::is_some), "some finite ray hits");
             let mut occluded = vec![false; mixed.len()];
             wide.any_triangles_interleaved::<3>(&packed, &mixed, &mut occluded);

@@ -14,7 +14,8 @@
 //! - Mrays/s, best of `--repeats`, on rayon pools of each `--threads` size, for `binary`
 //!   (the scalar ordered traversal of `phr_bvh::traverse` with `intersect_triangle`: the
 //!   renderer's path before the wide BVH), `wide4` and `wide8` (best SIMD level of this CPU,
-//!   triangles packed in leaf order), and Embree on the same rays;
+//!   triangles packed in leaf order), wide-8 with 2 or 4 rays interleaved and in packets of 16
+//!   (AVX-512, closest hits only), and Embree on the same rays;
 //! - where the time goes: nodes visited, leaves visited and triangles tested per ray (wide-8
 //!   and binary), and the share of a traversal-only pass: wide-8 with each ray's `tmax` set to
 //!   its closest hit and leaves counted but not intersected (the traversal the real query does

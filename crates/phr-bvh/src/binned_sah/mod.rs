@@ -296,8 +296,9 @@ enum Decision {
 }
 
 impl Ctx {
-    /// Bins `refs`, picks the cheapest plane and partitions them: compiled for AVX2 where the
-    /// CPU has it (blends instead of and/or masks in the partition, three-operand forms).
+    /// Bins `refs`, picks the cheapest plane and partitions them: compiled for AVX-512 (F and
+    /// VL: masked `min`/`max` for the sides' bounds in the partition) or AVX2 (blends instead
+    /// of and/or masks, three-operand forms) where the CPU has it.
     fn decide(&self, refs: &mut [PrimRef], bounds: &Bounds, depth: u32, bins: &mut Bins) -> Decision {
         #[cfg(target_arch = "x86_64")]
         if self.avx512 {

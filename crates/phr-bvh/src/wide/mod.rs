@@ -1,5 +1,6 @@
-//! Wide BVHs (4 or 8 children per node) traced one ray at a time with SIMD box tests: the
-//! fast path for rendering, made from any [`Bvh`] of this crate.
+//! Wide BVHs (4 or 8 children per node) traced one ray at a time with SIMD box tests (or, for
+//! coherent rays of an 8-wide tree, 16 at a time: [`packet`]): the fast path for rendering,
+//! made from any [`Bvh`] of this crate.
 //!
 //! # Why
 //!
@@ -44,6 +45,8 @@
 //!   each node before it knows the next, and interleaved rays fill that wait with each
 //!   other's work, which pays most where the tree does not fit the cache (the dragon's 65 MB:
 //!   1.7–1.8× the single ray's rate with 4 rays at once).
+//! - [`packet`] (x86_64 with AVX-512): 16 coherent rays traced together through an 8-wide
+//!   tree, one per lane, with the single-ray answers.
 //! - [`PackedTriangles`]: triangles in leaf order with `v0, e1 = v1 - v0, e2 = v2 - v0`
 //!   precomputed, structure-of-arrays in blocks of 4, tested 4 at a time by an SSE
 //!   Möller–Trumbore that performs [`crate::triangle::intersect_triangle`]'s operations in
@@ -76,6 +79,7 @@
 pub mod child_order;
 pub mod collapse;
 pub mod interleave;
+pub mod packet;
 pub(crate) mod pieces;
 mod refit;
 pub mod simd;
