@@ -67,6 +67,7 @@ mod avx512 {
     use super::*;
     use crate::aabb::ROBUST_SLAB;
     use crate::triangle::{TriangleHit, EDGE_TOLERANCE, MAX_EDGE_SLACK};
+    use crate::wide::traverse::traversable;
     use crate::wide::triangles::LANES;
     use std::arch::x86_64::*;
 
@@ -115,13 +116,8 @@ mod avx512 {
         let neg = inv.map(|i| _mm512_cmp_ps_mask::<_CMP_LT_OQ>(i, zero));
         let p = Packet { o, d, inv, neg, tmin: lane(&|r| r.tmin, 0.0) };
         let mut tmax = lane(&|r| r.tmax, 0.0);
-        // Rays that may be traversed (see `traverse::traversable`).
-        let mut active: u16 = 0;
-        for (i, r) in rays.iter().enumerate() {
-            if r.origin.is_finite() && r.dir.is_finite() && r.inv_dir.is_finite() {
-                active |= 1 << i;
-            }
-        }
+        // Rays that may be traversed.
+        let active = rays.iter().enumerate().fold(0u16, |m, (i, r)| m | (u16::from(traversable(r)) << i));
         // The best hit per lane: prim (u32::MAX while there is none, above every primitive's
         // index, so that a first hit at exactly `tmax` is taken), slot, t (= tmax once found), u, v.
         let mut best_prim = _mm512_set1_epi32(-1);

@@ -289,7 +289,7 @@ impl StackRoom {
 /// empty slot, so every pushed entry is a real child and the stack bound holds. One test per
 /// ray.
 #[inline(always)]
-fn traversable(ray: &Ray) -> bool {
+pub(super) fn traversable(ray: &Ray) -> bool {
     ray.origin.is_finite() && ray.dir.is_finite() && ray.inv_dir.is_finite()
 }
 
