@@ -27,6 +27,7 @@ pub mod rebuild;
 pub mod render;
 pub mod sampler;
 pub mod scene;
+pub mod static_rebuild;
 pub mod texture;
 
 pub use error::LoadError;

@@ -17,6 +17,10 @@
 //!   a worker thread ([`crate::rebuild`]): moving frames refit the tree they trace and pack
 //!   its triangles, and take a new tree when the worker has one.
 //!
+//! With a static builder ([`FramePipeline::set_static_builder`], [`crate::static_rebuild`]),
+//! the trees of the parts that never move are built a second time, in the background, and
+//! swapped in without restarting the accumulation.
+//!
 //! A [`FrameTracer`] set with [`FramePipeline::with_tracer`] (the GPU) traces the colour
 //! frames; everything else stays on the CPU.
 //!
@@ -24,7 +28,7 @@
 //! the viewer's statistics panel and the headless CSV show.
 
 use crate::animation::Animator;
-use crate::auto_builder::AutoBuilder;
+use crate::auto_builder::{AutoBuilder, AutoState};
 use crate::camera::Camera;
 use crate::camera::CameraDesc;
 use crate::denoise::{Filter, Guide, Temporal};
@@ -39,6 +43,7 @@ use crate::render::Renderer;
 use crate::sampler::JitterTable;
 use crate::scene::RenderSettings;
 use crate::scene::Scene;
+use crate::static_rebuild::{StaticJob, StaticRebuilder, StaticTree};
 use glam::Vec3;
 use phr_bvh::binned_sah::build_binned_sah_wide;
 use phr_bvh::dynamic::DynamicBvh;
@@ -164,7 +169,8 @@ pub struct FrameReport {
     pub frame_ms: f64,
     pub rays: u64,
     /// SAH cost (unit constants) of the current render tree: thesis pipeline, the builder's
-    /// tree over the whole scene (PHR's straight into the 8-wide layout:
+    /// tree over the whole scene (or the static builder's, once its tree landed:
+    /// [`FramePipeline::set_static_builder`]; PHR's straight into the 8-wide layout:
     /// [`phr_bvh::wide_sah_cost`], lower than a binary tree's; the others' binary trees, the
     /// thesis's measure); two-level, the 8-wide tree traced for the deforming part, 0
     /// without one.
@@ -182,18 +188,21 @@ pub struct FrameReport {
     pub device: &'static str,
     /// The builder of the frame's tree.
     pub builder: Builder,
+    /// The builder whose trees the parts that never move had in this frame, when they are
+    /// not the builder's ([`FramePipeline::set_static_builder`]).
+    pub static_builder: Option<Builder>,
 }
 
 impl FrameReport {
     /// The columns of [`FrameReport::csv_row`]: what `phr view --headless` and `phr animate`
     /// write per frame.
     pub const CSV_HEADER: &'static str =
-        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,tree_age,denoise_ms,upload_ms,upload_bytes,device,builder";
+        "frame,time_s,moved,pose_ms,refit_ms,build_ms,wide_ms,render_ms,frame_ms,rays,mrays_per_s,sah_cost,build_cost,samples,tree_age,denoise_ms,upload_ms,upload_bytes,device,builder,static_builder";
 
     /// This frame as a CSV row of [`FrameReport::CSV_HEADER`]'s columns.
     pub fn csv_row(&self) -> String {
         format!(
-            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{},{:.3},{:.3},{},{},{}",
+            "{},{:.4},{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{:.3},{:.4},{},{},{},{:.3},{:.3},{},{},{},{}",
             self.frame,
             self.time,
             self.moved as u8,
@@ -213,7 +222,8 @@ impl FrameReport {
             self.upload_ms,
             self.upload_bytes,
             self.device,
-            self.builder
+            self.builder,
+            self.static_builder.map_or_else(|| "-".to_string(), |b| b.to_string())
         )
     }
 
@@ -238,6 +248,13 @@ pub struct FramePipeline {
     parts: Option<Parts>,
     /// The deforming part's rebuild worker ([`PipelineKind::Async`] with PHR).
     rebuilder: Option<AsyncRebuilder>,
+    /// The builder that rebuilds the trees of the parts that never move, in the background
+    /// ([`FramePipeline::set_static_builder`]), the worker doing it, and whether the current
+    /// trees were rebuilt (`Some(true)`: their trees are the static builder's;
+    /// `Some(false)`: there was nothing to rebuild; `None`: not yet).
+    static_builder: Option<Builder>,
+    static_rebuilder: Option<StaticRebuilder>,
+    static_rebuilt: Option<bool>,
     /// [`FrameReport::tree_age`] of the traced tree.
     tree_age: u64,
     /// The SAH cost of the last tree the worker delivered, when it landed.
@@ -314,6 +331,9 @@ impl FramePipeline {
             dynamic: None,
             parts: None,
             rebuilder: None,
+            static_builder: None,
+            static_rebuilder: None,
+            static_rebuilt: None,
             tree_age: 0,
             landed_sah: 0.0,
             lights: None,
@@ -399,6 +419,93 @@ impl FramePipeline {
             self.parts = None;
             self.rebuilder = None;
         }
+    }
+
+    /// Has `builder` rebuild, in the background, the trees of the parts whose primitives
+    /// never move ([`crate::static_rebuild`]): once the first frame with the current trees is out,
+    /// and again whenever they are built anew (another builder, another layout). `None`
+    /// keeps the builder's trees. In the thesis pipeline, whose one tree is rebuilt when
+    /// anything moves, only a scene without animation is; with another device tracing,
+    /// nothing is. The image does not change, so the accumulation goes on.
+    pub fn set_static_builder(&mut self, builder: Option<Builder>) {
+        if builder != self.static_builder {
+            self.static_builder = builder;
+            self.forget_static_rebuild();
+        }
+    }
+
+    /// Whether the trees of the parts that never move are now the static builder's (false
+    /// while it builds them, and without one).
+    pub fn static_rebuilt(&self) -> bool {
+        self.static_rebuilt == Some(true)
+    }
+
+    /// Waits for the static rebuild under way, if any, and swaps its trees in (between frames,
+    /// like [`FramePipeline::step`]; not from one of rayon's worker threads). For tests and
+    /// benchmarks that need to know which trees a frame traces.
+    pub fn finish_static_rebuild(&mut self) {
+        if let Some(trees) = self.static_rebuilder.as_mut().and_then(StaticRebuilder::wait) {
+            self.land_static_trees(trees, &mut FrameReport::default());
+        }
+    }
+
+    /// Drops the static rebuild under way (its trees would replace newer ones) and marks
+    /// the current trees as not rebuilt.
+    fn forget_static_rebuild(&mut self) {
+        self.static_rebuilder = None;
+        self.static_rebuilt = None;
+    }
+
+    /// Starts the static rebuild of the current trees if it is due: after a frame, with the
+    /// trees built, when none is under way or done.
+    fn start_static_rebuild(&mut self) {
+        let Some(builder) = self.static_builder else { return };
+        if self.static_rebuilt.is_some() || self.static_rebuilder.is_some() || self.tree_dirty || self.tracer.is_some()
+        {
+            return;
+        }
+        // Not while the online tuner measures its candidates: a build beside their frames
+        // would slow them down.
+        if matches!(self.auto.as_ref().map(|a| &a.state), Some(AutoState::Exploring { .. })) {
+            return;
+        }
+        self.static_rebuilt = Some(false);
+        if builder == self.settings.builder {
+            return;
+        }
+        let deforming = match (&self.parts, self.settings.pipeline) {
+            (None, PipelineKind::Thesis) if self.animator.is_animated() => return,
+            (None, _) => None,
+            (Some(parts), _) => parts.deforming,
+        };
+        let jobs: Vec<StaticJob> = (0..self.geometry.part_count())
+            .filter(|&k| Some(k) != deforming)
+            .map(|k| StaticJob {
+                part: k,
+                boxes: self.geometry.part_boxes(k),
+                triangles: self.geometry.part_triangles(k).into_owned(),
+            })
+            .collect();
+        if !jobs.is_empty() {
+            self.static_rebuilt = None;
+            self.static_rebuilder = Some(StaticRebuilder::start(builder, jobs));
+        }
+    }
+
+    /// Gives the parts the static builder's trees (their numbering and packing timed as
+    /// `report.wide_ms`); the top level stays, as the parts' boxes do.
+    fn land_static_trees(&mut self, trees: Vec<StaticTree>, report: &mut FrameReport) {
+        for tree in trees {
+            let (_, packing) = self.geometry.set_part_wide(tree.part, |wide| *wide = tree.wide);
+            report.wide_ms += packing.as_secs_f64() * 1e3;
+            if self.parts.is_none() {
+                // The thesis pipeline's one tree: its cost is the one reported.
+                self.sah = tree.sah;
+            }
+        }
+        self.static_rebuilder = None;
+        self.static_rebuilt = Some(true);
+        self.version += 1;
     }
 
     pub fn scene(&self) -> &Scene {
@@ -494,6 +601,9 @@ impl FramePipeline {
     fn run_frame(&mut self, dt: f32) -> FrameReport {
         let start = Instant::now();
         let mut report = FrameReport { frame: self.frame, ..FrameReport::default() };
+        if let Some(trees) = self.static_rebuilder.as_mut().and_then(StaticRebuilder::finished) {
+            self.land_static_trees(trees, &mut report);
+        }
         let moved = self.playing && self.speed != 0.0 && self.animator.is_animated();
         if moved {
             self.time += dt * self.speed;
@@ -551,8 +661,10 @@ impl FramePipeline {
                 report.denoise_ms = ms_since(denoise_start);
             }
         }
+        self.start_static_rebuild();
         report.frame_ms = ms_since(start);
         report.builder = self.settings.builder;
+        report.static_builder = self.static_builder.filter(|_| self.static_rebuilt());
         if let (true, Some(auto)) = (moved, &mut self.auto) {
             // The tuner sees the frames whose tree the builder made.
             if let Some(next) = auto.record(report.frame_ms) {
@@ -571,6 +683,7 @@ impl FramePipeline {
     }
 
     fn rebuild(&mut self, report: &mut FrameReport) {
+        self.forget_static_rebuild();
         let boxes = &self.geometry.boxes;
         match self.settings.builder {
             Builder::Phr(options) => {
@@ -609,6 +722,7 @@ impl FramePipeline {
     /// rigid parts to the current time and rebuilds the deforming part from its moved boxes.
     fn update_parts(&mut self, report: &mut FrameReport) {
         if self.parts.is_none() {
+            self.forget_static_rebuild();
             let build_start = Instant::now();
             let parts = self.split();
             report.build_ms = ms_since(build_start);

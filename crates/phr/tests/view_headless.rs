@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{mean_abs_diff, phr_ok, repo_path, Image, Table, TempDir};
+use common::{mean_abs_diff, phr, phr_ok, repo_path, Image, Table, TempDir};
 use std::time::Duration;
 
 /// Runs `phr --threads 2 view --headless --out OUT ARGS...` in `dir`.
@@ -51,7 +51,13 @@ fn check_frames(csv: &Table, dt: f64, playing: bool, pixels: f64, rays_per_pixel
             // (Asynchronous rebuilds report the last landed tree's, none before the first.)
             assert!(n("build_cost") > 0.0 || n("tree_age") > 0.0, "frame {r}: PHR's Σ|cut| is {}", n("build_cost"));
         } else {
-            assert!(n("refit_ms") == 0.0 && n("wide_ms") == 0.0, "frame {r}: nothing deforms, nothing is refitted");
+            // The frame in which the static builder's trees land packs their triangles.
+            let static_builder = |r: usize| &csv.rows[r][csv.col("static_builder")];
+            let landed = static_builder(r) != "-" && (r == 0 || static_builder(r - 1) == "-");
+            assert!(
+                n("refit_ms") == 0.0 && (n("wide_ms") == 0.0 || landed),
+                "frame {r}: nothing deforms, nothing is refitted"
+            );
         }
         let stages: f64 = ["pose_ms", "refit_ms", "build_ms", "wide_ms", "render_ms"].iter().map(|c| n(c)).sum();
         assert!(n("frame_ms") >= stages - 0.01, "frame {r}: stages {stages} ms exceed the frame {}", n("frame_ms"));
@@ -242,4 +248,27 @@ fn the_auto_builder_tries_the_builders_then_keeps_one() {
     assert!(distinct.len() >= 4, "{builders:?}");
     assert!(builders[32..].iter().all(|b| *b == builders[39]), "{builders:?}");
     assert!(out.stdout.contains(&format!("auto: {}", builders[39])), "{}", out.stdout);
+}
+
+/// `--static-builder`: the CSV names it from the frame its trees landed in on (never before
+/// the first frame is out, never back); `none` keeps the builder's trees; a name that is no
+/// builder is an error that says what is wrong.
+#[test]
+fn the_static_builder_is_reported_once_its_trees_landed() {
+    let dir = TempDir::new("view-static-builder");
+    let base = ["--threads", "2", "view", "--headless", "--png-every", "0", "--width", "16", "--height", "16"];
+    let run = |out: &str, extra: &[&str]| {
+        let args: Vec<&str> =
+            base.iter().chain(["--out", out, "--frames", "60"].iter()).chain(extra).copied().collect();
+        phr_ok(&dir.0, &args, Duration::from_secs(300));
+        let csv = Table::read(&dir.join(out).join("frames.csv"));
+        (0..csv.rows.len()).map(|r| csv.str(r, "static_builder").to_string()).collect::<Vec<_>>()
+    };
+    let default = run("default", &[]);
+    assert_eq!(default[0], "-", "the first frame traces the builder's trees");
+    let first = default.iter().position(|b| b != "-").unwrap_or(default.len());
+    assert!(default[first..].iter().all(|b| b == "sbvh"), "{default:?}");
+    assert!(run("none", &["--static-builder", "none"]).iter().all(|b| b == "-"));
+    let bad = phr(&dir.0, &[&base[..], &["--static-builder", "nonsense"]].concat());
+    assert!(bad.code != Some(0) && bad.stderr.contains("--static-builder"), "{}", bad.stderr);
 }

@@ -51,6 +51,13 @@ pub struct ViewArgs {
     /// Children per node for PHR builders (2 to 16).
     #[arg(long, default_value_t = 2)]
     branching: u32,
+    /// A builder for the trees of what never moves (the static scene, and the rigid objects,
+    /// which move by their transforms alone): once the first frame is out, they are built
+    /// again with it on a worker thread and swapped in without restarting the accumulation
+    /// (the hits, and so the image, stay the same); `none`: keep --builder's trees. The
+    /// thesis pipeline rebuilds only scenes without animation.
+    #[arg(long, default_value = "sbvh")]
+    static_builder: StaticBuilderArg,
     /// How trees follow a moving scene: `two-level` builds a tree per rigidly moving object
     /// once and moves it by its transform under a small top-level tree, rebuilding only the
     /// deforming objects' tree; `async` does so too, but rebuilds the deforming objects'
@@ -89,6 +96,21 @@ pub struct ViewArgs {
     /// device; without a denoiser the GPU keeps the film and the window shows it there.
     #[arg(long, value_enum, default_value = "cpu")]
     device: Device,
+}
+
+/// `--static-builder`: a builder, or `none`.
+#[derive(Clone, Copy, Debug)]
+pub struct StaticBuilderArg(Option<Builder>);
+
+impl std::str::FromStr for StaticBuilderArg {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "none" => Ok(StaticBuilderArg(None)),
+            _ => s.parse().map(|b| StaticBuilderArg(Some(b))),
+        }
+    }
 }
 
 /// `--builder`: a builder, or `auto` (online tuning).
@@ -226,6 +248,7 @@ fn open(args: &ViewArgs) -> Result<(FramePipeline, Option<device::OnGpu>)> {
         (pipeline, gpu) = (attached, Some(device));
     }
     pipeline.set_auto(auto);
+    pipeline.set_static_builder(args.static_builder.0);
     pipeline.playing = !args.paused;
     Ok((pipeline, gpu))
 }

@@ -578,7 +578,13 @@ impl ViewerApp {
                 ui.end_row();
             };
             row("triangles", format!("{}", self.triangles));
-            row("builder", report.builder.to_string());
+            row(
+                "builder",
+                match report.static_builder {
+                    Some(b) => format!("{} (what never moves: {b})", report.builder),
+                    None => report.builder.to_string(),
+                },
+            );
             row("pose", format!("{:.2} ms", report.pose_ms));
             row("refit", format!("{:.2} ms", report.refit_ms));
             row("PHR / build", format!("{:.2} ms", report.build_ms));
