@@ -414,23 +414,36 @@ impl FramePipeline {
     fn switch_builder(&mut self, builder: Builder) {
         if builder != self.settings.builder {
             self.settings.builder = builder;
-            self.tree_dirty = true;
-            self.dynamic = None;
-            self.parts = None;
-            self.rebuilder = None;
+            self.build_trees_anew();
         }
+    }
+
+    /// Has the next frame build every tree afresh with the builder: drops PHR's auxiliary
+    /// tree, the two-level layout, the deforming part's rebuild worker and the static rebuild
+    /// (its trees were made for the current layout).
+    fn build_trees_anew(&mut self) {
+        self.tree_dirty = true;
+        self.dynamic = None;
+        self.parts = None;
+        self.rebuilder = None;
+        self.forget_static_rebuild();
     }
 
     /// Has `builder` rebuild, in the background, the trees of the parts whose primitives
     /// never move ([`crate::static_rebuild`]): once the first frame with the current trees is out,
     /// and again whenever they are built anew (another builder, another layout). `None`
     /// keeps the builder's trees. In the thesis pipeline, whose one tree is rebuilt when
-    /// anything moves, only a scene without animation is; with another device tracing,
-    /// nothing is. The image does not change, so the accumulation goes on.
+    /// anything moves, only a scene without animation is; with another device tracing, or
+    /// in the heatmap view mode (which shows the steps through the builder's trees), nothing
+    /// is. The image does not change, so the accumulation goes on.
     pub fn set_static_builder(&mut self, builder: Option<Builder>) {
         if builder != self.static_builder {
             self.static_builder = builder;
-            self.forget_static_rebuild();
+            match self.static_rebuilt() {
+                // The last static builder's trees are in place: back to the builder's.
+                true => self.build_trees_anew(),
+                false => self.forget_static_rebuild(),
+            }
         }
     }
 
@@ -457,11 +470,12 @@ impl FramePipeline {
     }
 
     /// Starts the static rebuild of the current trees if it is due: after a frame, with the
-    /// trees built, when none is under way or done.
-    fn start_static_rebuild(&mut self) {
+    /// trees built, when none is under way or done. The parts' boxes and triangles are
+    /// copied for the worker here, timed as `report.build_ms`.
+    fn start_static_rebuild(&mut self, report: &mut FrameReport) {
         let Some(builder) = self.static_builder else { return };
-        if self.static_rebuilt.is_some() || self.static_rebuilder.is_some() || self.tree_dirty || self.tracer.is_some()
-        {
+        let busy = self.static_rebuilt.is_some() || self.static_rebuilder.is_some() || self.tree_dirty;
+        if busy || self.tracer.is_some() || self.settings.mode == ViewMode::Heatmap {
             return;
         }
         // Not while the online tuner measures its candidates: a build beside their frames
@@ -478,6 +492,7 @@ impl FramePipeline {
             (None, _) => None,
             (Some(parts), _) => parts.deforming,
         };
+        let copy_start = Instant::now();
         let jobs: Vec<StaticJob> = (0..self.geometry.part_count())
             .filter(|&k| Some(k) != deforming)
             .map(|k| StaticJob {
@@ -486,6 +501,7 @@ impl FramePipeline {
                 triangles: self.geometry.part_triangles(k).into_owned(),
             })
             .collect();
+        report.build_ms += ms_since(copy_start);
         if !jobs.is_empty() {
             self.static_rebuilt = None;
             self.static_rebuilder = Some(StaticRebuilder::start(builder, jobs));
@@ -493,9 +509,13 @@ impl FramePipeline {
     }
 
     /// Gives the parts the static builder's trees (their numbering and packing timed as
-    /// `report.wide_ms`); the top level stays, as the parts' boxes do.
+    /// `report.wide_ms`). A part's box is that of the same primitives in any tree, so the top
+    /// level needs no rebuild. No trees: the worker failed, and the builder's trees stay.
     fn land_static_trees(&mut self, trees: Vec<StaticTree>, report: &mut FrameReport) {
+        self.static_rebuilder = None;
+        self.static_rebuilt = Some(!trees.is_empty());
         for tree in trees {
+            debug_assert!(tree.part < self.geometry.part_count(), "a static tree of another layout");
             let (_, packing) = self.geometry.set_part_wide(tree.part, |wide| *wide = tree.wide);
             report.wide_ms += packing.as_secs_f64() * 1e3;
             if self.parts.is_none() {
@@ -503,8 +523,6 @@ impl FramePipeline {
                 self.sah = tree.sah;
             }
         }
-        self.static_rebuilder = None;
-        self.static_rebuilt = Some(true);
         self.version += 1;
     }
 
@@ -556,11 +574,13 @@ impl FramePipeline {
             self.geometry = posed_geometry(&self.scene, &mut self.animator, settings.pipeline, self.time);
             self.lights = None;
         }
-        if settings.builder != self.settings.builder || settings.pipeline != self.settings.pipeline {
-            self.tree_dirty = true;
-            self.dynamic = None;
-            self.parts = None;
-            self.rebuilder = None;
+        // The heatmap counts the steps through the builder's trees.
+        let heatmap_over_static_trees = settings.mode == ViewMode::Heatmap && self.static_rebuilt();
+        if settings.builder != self.settings.builder
+            || settings.pipeline != self.settings.pipeline
+            || heatmap_over_static_trees
+        {
+            self.build_trees_anew();
         }
         if (settings.width, settings.height) != (self.settings.width, self.settings.height) {
             self.film = Film::new(settings.width.max(1), settings.height.max(1));
@@ -602,6 +622,7 @@ impl FramePipeline {
         let start = Instant::now();
         let mut report = FrameReport { frame: self.frame, ..FrameReport::default() };
         if let Some(trees) = self.static_rebuilder.as_mut().and_then(StaticRebuilder::finished) {
+            // (A change of layout since it started dropped it: its trees are this layout's.)
             self.land_static_trees(trees, &mut report);
         }
         let moved = self.playing && self.speed != 0.0 && self.animator.is_animated();
@@ -661,7 +682,7 @@ impl FramePipeline {
                 report.denoise_ms = ms_since(denoise_start);
             }
         }
-        self.start_static_rebuild();
+        self.start_static_rebuild(&mut report);
         report.frame_ms = ms_since(start);
         report.builder = self.settings.builder;
         report.static_builder = self.static_builder.filter(|_| self.static_rebuilt());

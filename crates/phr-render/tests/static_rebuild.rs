@@ -113,7 +113,7 @@ fn step_both(rebuilt: &mut FramePipeline, plain: &mut FramePipeline, frames: usi
     }
 }
 
-/// The parts of `p` other than `deforming` whose trees differ from those of `q`.
+/// The parts of `p` whose trees differ from those of `q`.
 fn differing_parts(p: &FramePipeline, q: &FramePipeline) -> Vec<usize> {
     let (g, h) = (p.geometry(), q.geometry());
     (0..g.part_count())
@@ -184,4 +184,54 @@ fn the_builder_itself_as_static_builder_changes_nothing() {
     p.finish_static_rebuild();
     assert!(!p.static_rebuilt());
     assert_eq!(p.step(0.1).static_builder, None);
+}
+
+/// A static rebuild under way when the layout changes is dropped: its trees were built for
+/// the old layout's parts (here, the two-level layout's three, against the thesis pipeline's
+/// one tree) and must not land in the new one.
+#[test]
+fn a_layout_change_drops_the_static_rebuild_under_way() {
+    let sbvh: Builder = "sbvh".parse().unwrap();
+    let mut rebuilt = pipeline(PipelineKind::Async, true, Some(sbvh));
+    let mut plain = pipeline(PipelineKind::Thesis, true, None);
+    rebuilt.step(0.1);
+    let settings = PipelineSettings { pipeline: PipelineKind::Thesis, ..rebuilt.settings().clone() };
+    rebuilt.set_settings(settings);
+    // Time for the worker to finish the trees of the old layout.
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    plain.step(0.1);
+    step_both(&mut rebuilt, &mut plain, 3, "after the switch to the thesis pipeline");
+    rebuilt.finish_static_rebuild();
+    assert!(!rebuilt.static_rebuilt(), "the thesis pipeline rebuilds no animated scene");
+}
+
+/// The heatmap shows the steps through the builder's trees: switching to it brings them
+/// back, and no static rebuild starts while it shows; `None` as static builder brings the
+/// builder's trees back too.
+#[test]
+fn the_heatmap_and_no_static_builder_bring_the_builders_trees_back() {
+    let sbvh: Builder = "sbvh".parse().unwrap();
+    for kind in [PipelineKind::Thesis, PipelineKind::Async] {
+        let mut plain = pipeline(kind, false, None);
+        plain.step(0.1);
+        let rebuilt_then = |change: &dyn Fn(&mut FramePipeline)| {
+            let mut p = pipeline(kind, false, Some(sbvh));
+            p.step(0.1);
+            p.finish_static_rebuild();
+            assert!(p.static_rebuilt() && differing_parts(&p, &plain).len() == 1, "{}", kind.name());
+            change(&mut p);
+            for _ in 0..3 {
+                p.step(0.1);
+            }
+            p.finish_static_rebuild();
+            p
+        };
+        let heatmap =
+            rebuilt_then(&|p| p.set_settings(PipelineSettings { mode: ViewMode::Heatmap, ..p.settings().clone() }));
+        assert!(!heatmap.static_rebuilt(), "{}: a static rebuild under the heatmap", kind.name());
+        assert!(differing_parts(&heatmap, &plain).is_empty(), "{}: the heatmap is not the builder's", kind.name());
+        let none = rebuilt_then(&|p| p.set_static_builder(None));
+        assert!(!none.static_rebuilt());
+        assert!(differing_parts(&none, &plain).is_empty(), "{}: without a static builder", kind.name());
+    }
 }

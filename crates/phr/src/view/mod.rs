@@ -55,7 +55,8 @@ pub struct ViewArgs {
     /// which move by their transforms alone): once the first frame is out, they are built
     /// again with it on a worker thread and swapped in without restarting the accumulation
     /// (the hits, and so the image, stay the same); `none`: keep --builder's trees. The
-    /// thesis pipeline rebuilds only scenes without animation.
+    /// thesis pipeline rebuilds only scenes without animation; nothing is rebuilt with
+    /// `--device gpu` or in the heatmap mode (which shows --builder's trees).
     #[arg(long, default_value = "sbvh")]
     static_builder: StaticBuilderArg,
     /// How trees follow a moving scene: `two-level` builds a tree per rigidly moving object
