@@ -249,12 +249,9 @@ pub struct FramePipeline {
     /// The deforming part's rebuild worker ([`PipelineKind::Async`] with PHR).
     rebuilder: Option<AsyncRebuilder>,
     /// The builder that rebuilds the trees of the parts that never move, in the background
-    /// ([`FramePipeline::set_static_builder`]), the worker doing it, and whether the current
-    /// trees were rebuilt (`Some(true)`: their trees are the static builder's;
-    /// `Some(false)`: there was nothing to rebuild; `None`: not yet).
+    /// ([`FramePipeline::set_static_builder`]), and where that stands for the current trees.
     static_builder: Option<Builder>,
-    static_rebuilder: Option<StaticRebuilder>,
-    static_rebuilt: Option<bool>,
+    static_trees: StaticTrees,
     /// [`FrameReport::tree_age`] of the traced tree.
     tree_age: u64,
     /// The SAH cost of the last tree the worker delivered, when it landed.
@@ -306,6 +303,18 @@ pub struct FramePipeline {
     pub rebuild_sah_growth: f64,
 }
 
+/// Where the static builder's trees for the current trees stand
+/// ([`FramePipeline::set_static_builder`]).
+enum StaticTrees {
+    /// To be built after the next frame.
+    Due,
+    /// Being built by the worker.
+    Building(StaticRebuilder),
+    /// Done for these trees: `rebuilt` if the parts have the static builder's trees, not if
+    /// there was nothing to rebuild (or the worker failed).
+    Done { rebuilt: bool },
+}
+
 /// Which part of the two-level layout holds what.
 struct Parts {
     /// The part of the deforming objects' primitives, rebuilt when they move.
@@ -332,8 +341,7 @@ impl FramePipeline {
             parts: None,
             rebuilder: None,
             static_builder: None,
-            static_rebuilder: None,
-            static_rebuilt: None,
+            static_trees: StaticTrees::Due,
             tree_age: 0,
             landed_sah: 0.0,
             lights: None,
@@ -450,14 +458,15 @@ impl FramePipeline {
     /// Whether the trees of the parts that never move are now the static builder's (false
     /// while it builds them, and without one).
     pub fn static_rebuilt(&self) -> bool {
-        self.static_rebuilt == Some(true)
+        matches!(self.static_trees, StaticTrees::Done { rebuilt: true })
     }
 
     /// Waits for the static rebuild under way, if any, and swaps its trees in (between frames,
     /// like [`FramePipeline::step`]; not from one of rayon's worker threads). For tests and
     /// benchmarks that need to know which trees a frame traces.
     pub fn finish_static_rebuild(&mut self) {
-        if let Some(trees) = self.static_rebuilder.as_mut().and_then(StaticRebuilder::wait) {
+        if let StaticTrees::Building(worker) = &mut self.static_trees {
+            let trees = worker.wait();
             self.land_static_trees(trees, &mut FrameReport::default());
         }
     }
@@ -465,8 +474,7 @@ impl FramePipeline {
     /// Drops the static rebuild under way (its trees would replace newer ones) and marks
     /// the current trees as not rebuilt.
     fn forget_static_rebuild(&mut self) {
-        self.static_rebuilder = None;
-        self.static_rebuilt = None;
+        self.static_trees = StaticTrees::Due;
     }
 
     /// Starts the static rebuild of the current trees if it is due: after a frame, with the
@@ -474,8 +482,8 @@ impl FramePipeline {
     /// copied for the worker here, timed as `report.build_ms`.
     fn start_static_rebuild(&mut self, report: &mut FrameReport) {
         let Some(builder) = self.static_builder else { return };
-        let busy = self.static_rebuilt.is_some() || self.static_rebuilder.is_some() || self.tree_dirty;
-        if busy || self.tracer.is_some() || self.settings.mode == ViewMode::Heatmap {
+        let due = matches!(self.static_trees, StaticTrees::Due) && !self.tree_dirty;
+        if !due || self.tracer.is_some() || self.settings.mode == ViewMode::Heatmap {
             return;
         }
         // Not while the online tuner measures its candidates: a build beside their frames
@@ -483,7 +491,8 @@ impl FramePipeline {
         if matches!(self.auto.as_ref().map(|a| &a.state), Some(AutoState::Exploring { .. })) {
             return;
         }
-        self.static_rebuilt = Some(false);
+        // Unless a worker starts below, there is nothing to rebuild.
+        self.static_trees = StaticTrees::Done { rebuilt: false };
         if builder == self.settings.builder {
             return;
         }
@@ -503,8 +512,7 @@ impl FramePipeline {
             .collect();
         report.build_ms += ms_since(copy_start);
         if !jobs.is_empty() {
-            self.static_rebuilt = None;
-            self.static_rebuilder = Some(StaticRebuilder::start(builder, jobs));
+            self.static_trees = StaticTrees::Building(StaticRebuilder::start(builder, jobs));
         }
     }
 
@@ -512,8 +520,7 @@ impl FramePipeline {
     /// `report.wide_ms`). A part's box is that of the same primitives in any tree, so the top
     /// level needs no rebuild. No trees: the worker failed, and the builder's trees stay.
     fn land_static_trees(&mut self, trees: Vec<StaticTree>, report: &mut FrameReport) {
-        self.static_rebuilder = None;
-        self.static_rebuilt = Some(!trees.is_empty());
+        self.static_trees = StaticTrees::Done { rebuilt: !trees.is_empty() };
         for tree in trees {
             debug_assert!(tree.part < self.geometry.part_count(), "a static tree of another layout");
             let (_, packing) = self.geometry.set_part_wide(tree.part, |wide| *wide = tree.wide);
@@ -621,9 +628,11 @@ impl FramePipeline {
     fn run_frame(&mut self, dt: f32) -> FrameReport {
         let start = Instant::now();
         let mut report = FrameReport { frame: self.frame, ..FrameReport::default() };
-        if let Some(trees) = self.static_rebuilder.as_mut().and_then(StaticRebuilder::finished) {
+        if let StaticTrees::Building(worker) = &mut self.static_trees {
             // (A change of layout since it started dropped it: its trees are this layout's.)
-            self.land_static_trees(trees, &mut report);
+            if let Some(trees) = worker.finished() {
+                self.land_static_trees(trees, &mut report);
+            }
         }
         let moved = self.playing && self.speed != 0.0 && self.animator.is_animated();
         if moved {

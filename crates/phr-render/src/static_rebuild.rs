@@ -79,23 +79,20 @@ impl StaticRebuilder {
 
     /// The parts' new trees if they are done, without waiting.
     pub fn finished(&mut self) -> Option<Vec<StaticTree>> {
-        if !self.worker.as_ref()?.is_finished() {
-            return None;
-        }
-        self.wait()
+        self.worker.as_ref().is_some_and(JoinHandle::is_finished).then(|| self.wait())
     }
 
-    /// Waits for the parts' new trees (`None` if they were taken already; none if the
-    /// worker failed, which is said on stderr).
+    /// Waits for the parts' new trees: none if the worker failed (which is said on stderr),
+    /// or if they were taken already.
     ///
     /// Not from one of rayon's worker threads: the build needs the pool, and with one thread,
     /// that very worker.
-    pub fn wait(&mut self) -> Option<Vec<StaticTree>> {
-        let trees = self.worker.take()?.join().unwrap_or_else(|_| {
+    pub fn wait(&mut self) -> Vec<StaticTree> {
+        let Some(worker) = self.worker.take() else { return Vec::new() };
+        worker.join().unwrap_or_else(|_| {
             eprintln!("warning: the static rebuild failed: the builder's trees stay");
             Vec::new()
-        });
-        Some(trees)
+        })
     }
 }
 
